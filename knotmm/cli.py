@@ -1,0 +1,63 @@
+"""The ``knotmm`` command: a thin dispatcher over :mod:`knotmm.commands`.
+
+Each sub-command lives in its own module under ``knotmm/commands/`` and provides
+``add_parser(subparsers)`` and ``execute(args) -> int``. User errors
+(:class:`knotmm.errors.KnotmmError`) are printed as one line, ``knotmm: error: ...``, and
+exit with the error's code (2 for bad input) and no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+
+from knotmm import __version__
+from knotmm.errors import KnotmmError
+
+#: Sub-command name -> module under knotmm.commands.
+COMMANDS = ("run", "template", "analyze", "sweep", "movie")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the argument parser with every available sub-command."""
+    parser = argparse.ArgumentParser(
+        prog="knotmm",
+        description="Simulate and analyse knotted filaments sedimenting at low Reynolds number.",
+    )
+    parser.add_argument("--version", action="version", version=f"knotmm {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in COMMANDS:
+        try:
+            module = importlib.import_module(f"knotmm.commands.{name}")
+        except ModuleNotFoundError as exc:  # a command not built yet
+            if exc.name != f"knotmm.commands.{name}":
+                raise
+            continue
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``knotmm`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="knotmm: %(message)s",
+    )
+    try:
+        return int(args.execute(args) or 0)
+    except KnotmmError as exc:
+        print(f"knotmm: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("knotmm: interrupted; files written so far are kept", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

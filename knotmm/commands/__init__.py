@@ -1,0 +1,1 @@
+"""Sub-commands of the ``knotmm`` command line, one module each."""

@@ -1,0 +1,385 @@
+"""Run files (TOML) -> validated, resolved run parameters.
+
+A run file has four tables, ``[knot]``, ``[model]``, ``[run]`` and ``[output]``; every key has
+a default (the study's values), so an empty file is the default run. :data:`SCHEMA` is the
+single source of truth for key names, types, defaults, ranges and documentation. Validation
+is strict: unknown keys (with a did-you-mean), wrong types and impossible values raise
+:class:`knotmm.errors.ConfigError` with one line that names the key.
+
+Keys are addressed with dotted names, ``"knot.beads"``, everywhere (command-line overrides,
+sweeps, error messages).
+
+Examples
+--------
+>>> cfg = RunConfig.from_dict({"knot": {"beads": 60}})
+>>> cfg["knot.beads"], cfg["model.bond_length"]
+(60, 0.6)
+>>> cfg.replace({"run.duration": 10.0})["run.duration"]
+10.0
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import math
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+from knotmm.errors import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = [
+    "SCHEMA",
+    "Key",
+    "RunConfig",
+    "load_run_file",
+    "parse_override",
+]
+
+_NO_DEFAULT = object()
+
+
+@dataclass(frozen=True)
+class Key:
+    """One run-file key: its type, default, allowed range and meaning.
+
+    Parameters
+    ----------
+    kind : {"int", "float", "bool", "str", "int_list"}
+        The TOML type expected. Integers are accepted where floats are expected.
+    default : object
+        The value used when the key is absent; ``None`` means "absent unless given" (such a
+        key is left out of a written run file while unset).
+    doc : str
+        Meaning and unit, shown in documentation and error messages.
+    minimum, maximum : float, optional
+        Inclusive bounds; ``exclusive_minimum`` makes the lower bound strict.
+    choices : tuple of str, optional
+        Allowed values of a string key.
+    """
+
+    kind: str
+    default: Any
+    doc: str
+    minimum: float | None = None
+    maximum: float | None = None
+    exclusive_minimum: bool = False
+    choices: tuple[str, ...] | None = None
+    allow_inf: bool = False
+
+
+#: Every key a run file may hold, by table. Defaults are the study's parameters.
+SCHEMA: dict[str, dict[str, Key]] = {
+    "knot": {
+        "kind": Key("str", "torus", "template kind", choices=("torus", "braid", "knotinfo", "file")),
+        "p": Key("int", 2, "torus knot: number of loops (windings around the torus axis)", 1),
+        "q": Key("int", 3, "torus knot: windings through the torus hole", 1),
+        "word": Key("int_list", None, "braid: signed generator indices, e.g. [1, -2, 1, -2]"),
+        "name": Key("str", None, "knotinfo: knot name such as '5_2'"),
+        "path": Key("str", None, "file: PDB or DCD path (a DCD needs its PDB beside it)"),
+        "frame": Key("int", 0, "file: frame index (negative counts from the end)"),
+        "topology": Key("str", None, "file: topology PDB for a DCD path"),
+        "beads": Key("int", 90, "number of beads N", 4),
+        "minor_radius": Key("float", 0.6, "minor radius a of the template torus, in d", 0.0, None, True),
+        "major_radius": Key(
+            "float", None,
+            "major radius r0 of the template torus, in d; default: bonds exactly bond_length",
+            0.0, None, True,
+        ),
+        "mirror": Key("bool", False, "true: the mirror image (left-handed for T(2,3))"),
+        "perturbation": Key("float", 0.0, "random displacement of each bead (std), in d", 0.0),
+        "seed": Key("int", None, "seed of the template perturbation; default: run.seed", 0),
+    },
+    "model": {
+        "bond_length": Key("float", 0.6, "equilibrium bond length l0, in d", 0.0, None, True),
+        "bond_stiffness": Key("float", 50.0, "bond stiffness B, in F0/d", 0.0, None, True),
+        "bending_stiffness": Key("float", 5.0, "bending stiffness A, in F0 d", 0.0),
+        "lj_sigma": Key("float", 0.5, "steric length sigma, in d", 0.0, None, True),
+        "lj_epsilon": Key("float", 0.25, "steric energy eps, in F0 d", 0.0),
+        "gravity": Key("float", 1.0, "force on each bead along -z, in F0", 0.0),
+    },
+    "run": {
+        "duration": Key("float", 200.0, "simulated time, in tau_d", 0.0, None, True),
+        "integrator": Key(
+            "str", "rk23",
+            "time stepper: rk23 (adaptive, default), rkc2 (adaptive, for very stiff chains), heun, midpoint, euler",
+            choices=("rk23", "rkc2", "heun", "midpoint", "euler"),
+        ),
+        "timestep": Key(
+            "float", 0.01, "step in tau_d; the first step of an adaptive integrator",
+            0.0, None, True,
+        ),
+        "tolerance": Key(
+            "float", 1e-4, "adaptive integrators: local error per step, in d", 0.0, None, True,
+        ),
+        "max_timestep": Key("float", 1.0, "adaptive integrators: largest step, in tau_d", 0.0,
+                            None, True),
+        "min_timestep": Key(
+            "float", 1e-7, "adaptive integrators: a step below this stops the run, in tau_d",
+            0.0, None, True,
+        ),
+        "max_bond_length": Key(
+            "float", 3.0, "a bond longer than this stops the run, in d", 0.0, None, True,
+        ),
+        "peclet": Key(
+            "float", math.inf, "Peclet number d F0/(kT); inf: deterministic", 0.0, None, True,
+            allow_inf=True,
+        ),
+        "platform": Key("str", "auto", "OpenMM platform: auto, Reference, CPU, CUDA, OpenCL",
+                        choices=("auto", "Reference", "CPU", "CUDA", "OpenCL", "HIP")),
+        "threads": Key("int", 1, "CPU platform threads", 1),
+        "seed": Key("int", 1, "random seed (noise, perturbations)", 0),
+    },
+    "output": {
+        "directory": Key("str", "runs/trefoil", "run directory"),
+        "frame_interval": Key("float", 0.5, "time between trajectory frames, in tau_d",
+                              0.0, None, True),
+        "observables_interval": Key(
+            "float", None, "time between observables rows, in tau_d; default: frame_interval",
+            0.0, None, True,
+        ),
+    },
+}
+
+
+def _suggest(name: str, options) -> str:
+    close = difflib.get_close_matches(name, list(options), n=1)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+def _check_value(dotted: str, key: Key, value: Any) -> Any:
+    """Validate one value against its :class:`Key`; return it normalised."""
+    expected = {
+        "int": "an integer",
+        "float": "a number",
+        "bool": "true or false",
+        "str": "a string",
+        "int_list": "a list of integers",
+    }[key.kind]
+    if key.kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
+    elif key.kind == "float":
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
+        value = float(value)
+        if math.isnan(value) or (math.isinf(value) and not (key.allow_inf and value > 0)):
+            raise ConfigError(f"{dotted} = {value!r}: expected a finite number")
+    elif key.kind == "bool":
+        if not isinstance(value, bool):
+            raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
+    elif key.kind == "str":
+        if not isinstance(value, str):
+            raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
+        if key.choices is not None and value not in key.choices:
+            # accept case-insensitive platform names etc.
+            lowered = {c.lower(): c for c in key.choices}
+            if value.lower() in lowered:
+                value = lowered[value.lower()]
+            else:
+                raise ConfigError(
+                    f"{dotted} = {value!r}: expected one of {', '.join(key.choices)}"
+                    + _suggest(value, key.choices)
+                )
+    elif key.kind == "int_list":
+        if not isinstance(value, (list, tuple)) or not all(
+            isinstance(v, int) and not isinstance(v, bool) for v in value
+        ):
+            raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
+        value = [int(v) for v in value]
+    if key.kind in ("int", "float"):
+        if key.minimum is not None:
+            if key.exclusive_minimum and not value > key.minimum:
+                raise ConfigError(f"{dotted} = {value!r}: must be > {key.minimum:g}")
+            if not key.exclusive_minimum and not value >= key.minimum:
+                raise ConfigError(f"{dotted} = {value!r}: must be >= {key.minimum:g}")
+        if key.maximum is not None and not value <= key.maximum:
+            raise ConfigError(f"{dotted} = {value!r}: must be <= {key.maximum:g}")
+    return value
+
+
+def split_key(dotted: str) -> tuple[str, str]:
+    """Split ``"table.key"`` and check that it names a known key."""
+    table, sep, name = dotted.partition(".")
+    if not sep or table not in SCHEMA:
+        raise ConfigError(
+            f"unknown key '{dotted}': keys are written table.key with table one of "
+            f"{', '.join(SCHEMA)}" + _suggest(table, SCHEMA)
+        )
+    if name not in SCHEMA[table]:
+        raise ConfigError(f"unknown key [{table}] {name}" + _suggest(name, SCHEMA[table]))
+    return table, name
+
+
+class RunConfig(Mapping):
+    """Validated run parameters, addressed by dotted key (``cfg["model.bond_length"]``).
+
+    Build one with :meth:`from_dict` or :func:`load_run_file`; it is immutable, and
+    :meth:`replace` returns a validated copy with some keys changed. Iterating yields the
+    dotted keys that are set.
+    """
+
+    def __init__(self, values: dict[str, dict[str, Any]]):
+        self._values = values
+
+    # -- construction -------------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any] | None = None) -> RunConfig:
+        """Validate a nested mapping (as parsed from TOML) and fill in defaults.
+
+        Raises
+        ------
+        ConfigError
+            For an unknown table or key, a wrong type, or a value out of range.
+        """
+        data = {} if data is None else data
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"a run file must be a table of tables, got {type(data).__name__}")
+        values: dict[str, dict[str, Any]] = {}
+        for table in data:
+            if table not in SCHEMA:
+                extra = " ([sweep] tables belong in sweep files)" if table == "sweep" else ""
+                raise ConfigError(
+                    f"unknown table [{table}]: expected {', '.join(SCHEMA)}"
+                    + _suggest(table, SCHEMA)
+                    + extra
+                )
+            if not isinstance(data[table], Mapping):
+                raise ConfigError(f"[{table}] must be a table, got {data[table]!r}")
+        for table, keys in SCHEMA.items():
+            given = dict(data.get(table, {}))
+            for name in given:
+                if name not in keys:
+                    raise ConfigError(f"unknown key [{table}] {name}" + _suggest(name, keys))
+            values[table] = {}
+            for name, key in keys.items():
+                if name in given:
+                    values[table][name] = _check_value(f"{table}.{name}", key, given[name])
+                else:
+                    values[table][name] = copy.deepcopy(key.default)
+        cfg = cls(values)
+        cfg._check_consistency()
+        return cfg
+
+    def _check_consistency(self) -> None:
+        """Cross-key checks that a single key's range cannot express."""
+        out = self._values["output"]
+        run = self._values["run"]
+        if run["min_timestep"] >= run["max_timestep"]:
+            raise ConfigError(
+                f"run.min_timestep = {run['min_timestep']!r} must be smaller than "
+                f"run.max_timestep = {run['max_timestep']!r}"
+            )
+        if out["frame_interval"] > run["duration"]:
+            raise ConfigError(
+                f"output.frame_interval = {out['frame_interval']!r} is longer than "
+                f"run.duration = {run['duration']!r}: lower the interval or run longer"
+            )
+        if run["max_bond_length"] <= self._values["model"]["bond_length"]:
+            raise ConfigError(
+                f"run.max_bond_length = {run['max_bond_length']!r} must exceed "
+                f"model.bond_length = {self._values['model']['bond_length']!r}"
+            )
+
+    # -- access -------------------------------------------------------------------------
+    def __getitem__(self, dotted: str) -> Any:
+        table, name = split_key(dotted)
+        return self._values[table][name]
+
+    def __iter__(self):
+        for table, keys in self._values.items():
+            for name, value in keys.items():
+                if value is not None:
+                    yield f"{table}.{name}"
+
+    def __len__(self) -> int:
+        return sum(1 for _ in self)
+
+    def table(self, name: str) -> dict[str, Any]:
+        """A copy of one table, ``{key: value}`` (unset optional keys are ``None``)."""
+        if name not in self._values:
+            raise ConfigError(f"unknown table [{name}]" + _suggest(name, SCHEMA))
+        return dict(self._values[name])
+
+    def replace(self, changes: Mapping[str, Any]) -> RunConfig:
+        """Return a validated copy with ``{"table.key": value}`` changes applied."""
+        data = self.to_dict(include_unset=False)
+        for dotted, value in changes.items():
+            table, name = split_key(dotted)
+            data.setdefault(table, {})[name] = value
+        return RunConfig.from_dict(data)
+
+    # -- output -------------------------------------------------------------------------
+    def to_dict(self, include_unset: bool = False) -> dict[str, dict[str, Any]]:
+        """Nested ``{table: {key: value}}``; unset optional keys only if ``include_unset``."""
+        return {
+            table: {k: copy.deepcopy(v) for k, v in keys.items() if include_unset or v is not None}
+            for table, keys in self._values.items()
+        }
+
+    def to_toml(self, header: str = "") -> str:
+        """The run file text: every resolved key, usable again as a run file."""
+        text = tomli_w.dumps(self.to_dict())
+        return header + text
+
+    def __repr__(self) -> str:
+        return f"RunConfig({self.to_dict()!r})"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, RunConfig) and self.to_dict() == other.to_dict()
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+def read_toml(path: str | Path, what: str = "run file") -> dict[str, Any]:
+    """Read a TOML file; raise :class:`ConfigError` with one line on any problem."""
+    path = Path(path)
+    if not path.exists():
+        raise ConfigError(f"{what} {str(path)!r} does not exist")
+    if path.is_dir():
+        raise ConfigError(f"{what} {str(path)!r} is a directory; give the .toml file")
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{what} {str(path)!r} is not valid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{what} {str(path)!r} cannot be read: {exc}") from None
+
+
+def load_run_file(path: str | Path) -> RunConfig:
+    """Load and validate a run file.
+
+    Extra top-level tables written by knotmm itself into ``run.toml`` (``[knotmm]``, with
+    the version and resolved facts) are ignored, so a run's ``run.toml`` is a valid run file.
+    """
+    data = read_toml(path)
+    data.pop("knotmm", None)
+    try:
+        return RunConfig.from_dict(data)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """Parse ``table.key=value`` (value in TOML syntax, bare words as strings)."""
+    dotted, sep, raw = text.partition("=")
+    if not sep:
+        raise ConfigError(f"--set {text!r}: expected table.key=value, e.g. run.duration=50")
+    dotted = dotted.strip()
+    split_key(dotted)
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return dotted, value

@@ -1,0 +1,175 @@
+"""Output writers scheduled by simulated time.
+
+A knotmm reporter has ``next_report_time(simulation) -> float`` (tau_d) and
+``report(simulation, state)``; :class:`knotmm.simulation.Simulation` lands its steps exactly
+on those times. Report ``k`` of a reporter with interval ``dt`` is at ``k * dt`` (computed
+from ``k``, never accumulated, so times do not drift). OpenMM's own step-scheduled reporters
+(``describeNextReport``) can be attached to the same simulation.
+
+Every writer flushes after each report, so a killed run keeps every finished frame and row.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+
+import numpy as np
+import openmm.app
+from openmm import unit
+
+__all__ = ["DCDReporter", "ObservablesReporter", "ProgressReporter", "OBSERVABLE_COLUMNS"]
+
+#: Columns of ``observables.csv`` (times in tau_d, lengths in d, energies in F0 d).
+OBSERVABLE_COLUMNS = (
+    "time",
+    "step",
+    "com_x",
+    "com_y",
+    "com_z",
+    "e_bond",
+    "e_bend",
+    "e_steric",
+    "e_gravity",
+    "e_total",
+    "max_bond",
+    "timestep",
+    "evaluations",
+)
+
+
+class _TimeScheduled:
+    """Reports at ``(first_index + k) * interval`` for ``k = 0, 1, ...``."""
+
+    def __init__(self, interval: float, first_index: int = 0):
+        if not interval > 0:
+            raise ValueError(f"interval={interval!r}: must be > 0 (tau_d)")
+        self.interval = float(interval)
+        self.index = int(first_index)
+
+    def next_report_time(self, simulation) -> float:
+        return self.index * self.interval
+
+    def _advance(self) -> None:
+        self.index += 1
+
+
+class DCDReporter(_TimeScheduled):
+    """Write frames to a DCD file in Angstrom (1 d = 10 A), without a unit cell.
+
+    Frame ``k`` is the state at ``t = k * interval``. Uses OpenMM's ``DCDFile``, which can
+    append to an existing file (for resumed runs, ``append=True``, ``first_index`` = frames
+    already in the file).
+
+    Parameters
+    ----------
+    path : str or Path
+    interval : float
+        Time between frames, in tau_d.
+    topology : openmm.app.Topology
+        Topology of the chain (no periodic box).
+    append : bool
+    first_index : int
+        Index of the next frame to write.
+    """
+
+    def __init__(self, path, interval, topology, append=False, first_index=0):
+        super().__init__(interval, first_index)
+        self.path = str(path)
+        self._file = open(self.path, "r+b" if append else "wb")
+        if append:
+            self._file.seek(0, 2)
+        # The header's time step is the frame interval (tau_d read as ps): one "step" per frame.
+        self._dcd = openmm.app.DCDFile(
+            self._file, topology, self.interval, firstStep=first_index, interval=1, append=append
+        )
+
+    def report(self, simulation, state) -> None:
+        self._dcd.writeModel(simulation.positions * unit.nanometer)
+        self._file.flush()
+        self._advance()
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._file.close()
+
+
+class ObservablesReporter(_TimeScheduled):
+    """Append a row of :data:`OBSERVABLE_COLUMNS` to a CSV file at every report time."""
+
+    def __init__(self, path, interval, append=False, first_index=0):
+        super().__init__(interval, first_index)
+        self.path = str(path)
+        self._file = open(self.path, "a" if append else "w", newline="")
+        self._writer = csv.writer(self._file)
+        if not append:
+            self._writer.writerow(OBSERVABLE_COLUMNS)
+            self._file.flush()
+
+    def report(self, simulation, state) -> None:
+        pos = simulation.positions
+        com = pos.mean(axis=0)
+        energies = simulation.energies()
+        timestep = getattr(simulation.integrator, "timestep", math.nan)
+        row = [
+            f"{simulation.time:.10g}",
+            simulation.currentStep,
+            f"{com[0]:.10g}",
+            f"{com[1]:.10g}",
+            f"{com[2]:.10g}",
+            f"{energies['bond']:.10g}",
+            f"{energies['bend']:.10g}",
+            f"{energies['steric']:.10g}",
+            f"{energies['gravity']:.10g}",
+            f"{energies['total']:.10g}",
+            f"{float(np.max(simulation.bond_lengths())):.10g}",
+            f"{timestep:.6g}",
+            simulation.n_evaluations,
+        ]
+        self._writer.writerow(row)
+        self._file.flush()
+        self._advance()
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._file.close()
+
+
+class ProgressReporter(_TimeScheduled):
+    """A progress bar (tqdm) over simulated time; by default only drawn on a terminal."""
+
+    def __init__(self, start: float, end: float, interval: float | None = None,
+                 enabled: bool | None = None, stream=None):
+        stream = sys.stderr if stream is None else stream
+        interval = interval or max((end - start) / 200.0, 1e-12)
+        super().__init__(interval, int(math.floor(start / interval + 1e-9)) + 1)
+        self.start = start
+        self.end = end
+        self._bar = None
+        if enabled is None:
+            enabled = hasattr(stream, "isatty") and stream.isatty()
+        if enabled:
+            from tqdm import tqdm
+
+            self._bar = tqdm(
+                total=round(end - start, 6),
+                initial=0,
+                unit="tau_d",
+                file=stream,
+                dynamic_ncols=True,
+                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} tau_d [{elapsed}<{remaining}]",
+            )
+        self._shown = 0.0
+
+    def report(self, simulation, state) -> None:
+        if self._bar is not None:
+            done = min(simulation.time, self.end) - self.start
+            self._bar.update(done - self._shown)
+            self._shown = done
+        self._advance()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None

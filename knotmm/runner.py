@@ -1,0 +1,325 @@
+"""From a validated run configuration to a finished run directory.
+
+A run directory is a contract other tools rely on:
+
+=================== =========================================================================
+``trajectory.dcd``  frames in Angstrom (1 d = 10 A), no unit cell; frame 0 is the start and
+                    frame k the state at ``k * output.frame_interval`` tau_d
+``topology.pdb``    the starting positions, one residue ``BEA`` per bead, CONECT records for
+                    every bond including the ring closure
+``run.toml``        every resolved parameter (a valid run file) plus a ``[knotmm]`` table:
+                    version, status (running, finished, fault, interrupted), template facts,
+                    and the run's summary
+``observables.csv`` time (tau_d), step, centre of mass (d), energy per term (F0 d), longest
+                    bond (d), current step size, velocity evaluations
+``view.vmd``        a VMD script: ``vmd -e view.vmd`` loads the pair and draws the ring
+=================== =========================================================================
+
+Nothing is written until the configuration, the template and the platform have been checked,
+and an existing run directory is never overwritten without ``overwrite=True``.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import math
+import os
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from knotmm import __version__
+from knotmm.config import RunConfig, read_toml
+from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault
+from knotmm.integrators import make_integrator
+from knotmm.reporters import DCDReporter, ObservablesReporter, ProgressReporter
+from knotmm.simulation import Simulation, select_platform
+from knotmm.system import ChainModel
+
+__all__ = ["RunResult", "run", "prepare_directory", "RUN_FILES", "write_atomic"]
+
+log = logging.getLogger(__name__)
+
+#: Files knotmm writes into a run directory (and may replace with ``overwrite``).
+RUN_FILES = (
+    "trajectory.dcd",
+    "topology.pdb",
+    "run.toml",
+    "observables.csv",
+    "view.vmd",
+    "checkpoint.npz",
+    "analysis.json",
+)
+
+VMD_SCRIPT = """\
+# VMD script written by knotmm {version}: run `vmd -e view.vmd` in this directory.
+# Lengths are in Angstrom: one bead diameter d = 10 A.
+mol new topology.pdb type pdb waitfor all
+mol addfile trajectory.dcd type dcd first 0 last -1 step 1 waitfor all
+set beads [atomselect top all]
+$beads set radius 5.0
+mol delrep 0 top
+mol representation VDW 1.0 16
+mol color ResID
+mol material AOChalky
+mol addrep top
+mol representation Bonds 2.0 12
+mol color ResID
+mol addrep top
+display projection Orthographic
+axes location LowerLeft
+animate goto 0
+"""
+
+
+@dataclass
+class RunResult:
+    """Summary of a finished run.
+
+    Attributes
+    ----------
+    directory : Path
+    time : float
+        Simulated time reached, in tau_d.
+    steps, evaluations, rejected : int
+    frames : int
+        Frames in ``trajectory.dcd``.
+    wall_time : float
+        Seconds, start-up included.
+    sedimentation_velocity : float
+        Mean speed of the centre of mass along -z over the run, in d/tau_d.
+    """
+
+    directory: Path
+    time: float
+    steps: int
+    evaluations: int
+    rejected: int
+    frames: int
+    wall_time: float
+    sedimentation_velocity: float
+
+    def summary(self) -> str:
+        """The one-line summary the CLI prints."""
+        rate = self.steps / self.wall_time if self.wall_time > 0 else math.inf
+        return (
+            f"simulated {self.time:g} tau_d, mean sedimentation speed "
+            f"{self.sedimentation_velocity:.4f} d/tau_d, wall time {self.wall_time:.1f} s, "
+            f"{rate:.0f} steps/s ({self.steps} steps, {self.evaluations} force evaluations), "
+            f"{self.frames} frames in {self.directory}"
+        )
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write a text file atomically (temporary file in the same directory, then rename)."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.chmod(tmp, 0o644)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def run_status(directory: Path) -> str | None:
+    """The ``[knotmm] status`` of a run directory, or None if it has no readable run.toml."""
+    path = Path(directory) / "run.toml"
+    if not path.exists():
+        return None
+    try:
+        return str(read_toml(path).get("knotmm", {}).get("status", "unknown"))
+    except ConfigError:
+        return "unreadable"
+
+
+def prepare_directory(directory: Path, overwrite: bool) -> None:
+    """Check that ``directory`` may be written; with ``overwrite``, remove knotmm's files.
+
+    Only the files of :data:`RUN_FILES` and knotmm's plots are removed, never anything else.
+
+    Raises
+    ------
+    RunDirectoryError
+        If the directory holds a run (or other files) and ``overwrite`` is false.
+    """
+    directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        raise RunDirectoryError(f"output directory {str(directory)!r} is a file; choose another --out")
+    if not directory.exists() or not any(directory.iterdir()):
+        return
+    status = run_status(directory)
+    if not overwrite:
+        if status is None:
+            raise RunDirectoryError(
+                f"output directory {str(directory)!r} is not empty and holds no knotmm run; "
+                f"choose another --out (or pass --overwrite to write knotmm's files there)"
+            )
+        raise RunDirectoryError(
+            f"output directory {str(directory)!r} already holds a {status} run; pass "
+            f"--overwrite to replace it, or choose another --out"
+        )
+    for name in RUN_FILES:
+        p = directory / name
+        if p.exists():
+            p.unlink()
+    for p in directory.glob("*.png"):
+        p.unlink()
+
+
+def _header(cfg: RunConfig) -> str:
+    return (
+        f"# knotmm run file, written by knotmm {__version__}.\n"
+        f"# Every resolved parameter; use it again with `knotmm run run.toml`.\n"
+        f"# Units: lengths in d, forces in F0, times in tau_d.\n\n"
+    )
+
+
+def write_run_toml(directory: Path, cfg: RunConfig, facts: dict) -> None:
+    """Write ``run.toml``: the resolved run file plus the ``[knotmm]`` facts table."""
+    import tomli_w
+
+    data = cfg.to_dict()
+    data["knotmm"] = {k: v for k, v in facts.items() if v is not None}
+    write_atomic(Path(directory) / "run.toml", _header(cfg) + tomli_w.dumps(data))
+
+
+def run(
+    cfg: RunConfig,
+    directory: str | os.PathLike | None = None,
+    overwrite: bool = False,
+    progress: bool | None = None,
+) -> RunResult:
+    """Run a simulation described by ``cfg`` and write its run directory.
+
+    Parameters
+    ----------
+    cfg : RunConfig
+        The validated run configuration.
+    directory : path, optional
+        Run directory; default ``cfg["output.directory"]``.
+    overwrite : bool
+        Replace an existing run in ``directory``.
+    progress : bool, optional
+        Show a progress bar; default: only when standard error is a terminal.
+
+    Returns
+    -------
+    RunResult
+
+    Raises
+    ------
+    ConfigError, TemplateError, RunDirectoryError
+        Before anything is written.
+    SimulationFault
+        If the dynamics breaks down; the files written so far are kept and ``run.toml``
+        says ``status = "fault"`` with the message.
+    """
+    from knotmm.templates import build_template
+
+    wall0 = time.perf_counter()
+    directory = Path(directory if directory is not None else cfg["output.directory"])
+    if math.isfinite(cfg["run.peclet"]):
+        raise ConfigError(
+            f"run.peclet = {cfg['run.peclet']!r}: Brownian dynamics is not available in this "
+            f"version; remove the key (deterministic, Pe = inf)"
+        )
+    template = build_template(cfg)
+    if template.resolved:
+        cfg = cfg.replace(template.resolved)
+    n_beads = template.positions.shape[0]
+    select_platform(cfg["run.platform"], n_beads, cfg["run.threads"])  # fails before writing
+    prepare_directory(directory, overwrite)
+
+    model = ChainModel.from_config(cfg)
+    integrator = make_integrator(
+        cfg["run.integrator"],
+        cfg["run.timestep"],
+        cfg["run.tolerance"],
+        cfg["run.max_timestep"],
+        cfg["run.min_timestep"],
+    )
+    sim = Simulation(
+        template.positions,
+        model,
+        integrator,
+        platform=cfg["run.platform"],
+        threads=cfg["run.threads"],
+        max_bond_length=cfg["run.max_bond_length"],
+    )
+    directory.mkdir(parents=True, exist_ok=True)
+    from knotmm.pdbfile import write_pdb
+
+    write_pdb(directory / "topology.pdb", template.positions)
+    write_atomic(directory / "view.vmd", VMD_SCRIPT.format(version=__version__))
+    facts = {
+        "version": __version__,
+        "status": "running",
+        "created": _dt.datetime.now().isoformat(timespec="seconds"),
+        "template": template.description,
+        "template_writhe": float(template.writhe),
+        "template_knot_type": template.knot_type,
+        "n_beads": int(n_beads),
+        "integrator": sim.integrator.describe(),
+        "platform": sim.platform_name,
+        "frame_interval": cfg["output.frame_interval"],
+    }
+    if template.notes:
+        facts["notes"] = list(template.notes)
+    write_run_toml(directory, cfg, facts)
+
+    frame_interval = cfg["output.frame_interval"]
+    obs_interval = cfg["output.observables_interval"] or frame_interval
+    dcd = DCDReporter(directory / "trajectory.dcd", frame_interval, sim.topology)
+    obs = ObservablesReporter(directory / "observables.csv", obs_interval)
+    duration = cfg["run.duration"]
+    bar = ProgressReporter(0.0, duration, frame_interval, enabled=progress)
+    sim.reporters.extend([dcd, obs, bar])
+    z0 = float(sim.positions[:, 2].mean())
+    status, message = "finished", None
+    try:
+        sim.run(duration)
+    except SimulationFault as exc:
+        status, message = "fault", str(exc)
+        raise
+    except KeyboardInterrupt:
+        status, message = "interrupted", "interrupted by the user"
+        raise
+    finally:
+        for r in (dcd, obs, bar):
+            r.close()
+        wall = time.perf_counter() - wall0
+        velocity = (z0 - float(sim.positions[:, 2].mean())) / sim.time if sim.time > 0 else 0.0
+        result = RunResult(
+            directory=directory,
+            time=sim.time,
+            steps=sim.currentStep,
+            evaluations=sim.n_evaluations,
+            rejected=sim.integrator.n_rejected,
+            frames=dcd.index,
+            wall_time=wall,
+            sedimentation_velocity=velocity,
+        )
+        facts.update(
+            status=status,
+            message=message,
+            time_reached=sim.time,
+            steps=sim.currentStep,
+            evaluations=sim.n_evaluations,
+            rejected_steps=sim.integrator.n_rejected,
+            frames=dcd.index,
+            wall_time_s=round(wall, 3),
+            mean_sedimentation_velocity=velocity,
+            final_max_bond=float(np.max(sim.bond_lengths())),
+        )
+        write_run_toml(directory, cfg, facts)
+    return result

@@ -1,0 +1,38 @@
+"""Model units and how OpenMM and trajectory files read them.
+
+knotmm works in model units everywhere in its API:
+
+* length: the bead diameter ``d``
+* force: ``F0``, the gravitational force on one bead
+* time: ``tau_d = d / (mu0 F0)``, the time a lone bead takes to fall one diameter
+* energy: ``F0 d``
+* mobility: ``mu0 = 1 / (3 pi eta d)``, the single-bead mobility
+
+Inside OpenMM 1 d reads as 1 nm, 1 F0 d as 1 kJ/mol and 1 tau_d as 1 ps, so forces come back
+in kJ/mol/nm = F0 and no conversion factor appears in the engine. Files that carry lengths in
+Angstrom (DCD, PDB) show a bead diameter of 10 A: the conversion happens once, at the file
+boundary.
+"""
+
+from __future__ import annotations
+
+#: Angstrom per bead diameter in DCD and PDB files (1 d = 1 nm = 10 A).
+ANGSTROM_PER_D = 10.0
+#: nm per bead diameter inside OpenMM.
+NM_PER_D = 1.0
+#: ps per tau_d inside OpenMM.
+PS_PER_TAU = 1.0
+#: kJ/mol per F0 d inside OpenMM.
+KJMOL_PER_F0D = 1.0
+#: Steric range factor: the truncated Lennard-Jones acts for r < 2**(1/6) sigma.
+LJ_CUTOFF_FACTOR = 2.0 ** (1.0 / 6.0)
+
+
+def d_to_angstrom(x):
+    """Convert lengths in bead diameters to Angstrom (for DCD/PDB files)."""
+    return x * ANGSTROM_PER_D
+
+
+def angstrom_to_d(x):
+    """Convert lengths in Angstrom (from DCD/PDB files) to bead diameters."""
+    return x / ANGSTROM_PER_D
