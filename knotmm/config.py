@@ -81,7 +81,9 @@ class Key:
 #: Every key a run file may hold, by table. Defaults are the study's parameters.
 SCHEMA: dict[str, dict[str, Key]] = {
     "knot": {
-        "kind": Key("str", "torus", "template kind", choices=("torus", "braid", "knotinfo", "file")),
+        "kind": Key(
+            "str", "torus", "template kind", choices=("torus", "braid", "knotinfo", "file")
+        ),
         "p": Key("int", 2, "torus knot: number of loops (windings around the torus axis)", 1),
         "q": Key("int", 3, "torus knot: windings through the torus hole", 1),
         "word": Key("int_list", None, "braid: signed generator indices, e.g. [1, -2, 1, -2]"),
@@ -90,7 +92,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "frame": Key("int", 0, "file: frame index (negative counts from the end)"),
         "topology": Key("str", None, "file: topology PDB for a DCD path"),
         "beads": Key("int", 90, "number of beads N", 4),
-        "minor_radius": Key("float", 0.6, "minor radius a of the template torus, in d", 0.0, None, True),
+        "minor_radius": Key(
+            "float", 0.6, "minor radius a of the template torus, in d", 0.0, None, True
+        ),
         "major_radius": Key(
             "float", None,
             "major radius r0 of the template torus, in d; default: bonds exactly bond_length",
@@ -112,7 +116,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "duration": Key("float", 200.0, "simulated time, in tau_d", 0.0, None, True),
         "integrator": Key(
             "str", "rk23",
-            "time stepper: rk23 (adaptive, default), rkc2 (adaptive, for very stiff chains), heun, midpoint, euler",
+            "time stepper: rk23 (adaptive, default), rkc2 (adaptive, for very stiff chains), "
+            "heun, midpoint, euler",
             choices=("rk23", "rkc2", "heun", "midpoint", "euler"),
         ),
         "timestep": Key(
@@ -139,6 +144,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
                         choices=("auto", "Reference", "CPU", "CUDA", "OpenCL", "HIP")),
         "threads": Key("int", 1, "CPU platform threads", 1),
         "seed": Key("int", 1, "random seed (noise, perturbations)", 0),
+        "topology_check_interval": Key(
+            "float", 10.0,
+            "time between knot-type checks (topoly), in tau_d; 0 switches them off", 0.0,
+        ),
+        "on_topology_change": Key(
+            "str", "warn", "when the knot type changes: warn (record it) or stop the run",
+            choices=("warn", "stop"),
+        ),
     },
     "output": {
         "directory": Key("str", "runs/trefoil", "run directory"),
@@ -146,6 +159,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
                               0.0, None, True),
         "observables_interval": Key(
             "float", None, "time between observables rows, in tau_d; default: frame_interval",
+            0.0, None, True,
+        ),
+        "checkpoint_interval": Key(
+            "float", 10.0,
+            "time between checkpoints, in tau_d (rounded up to whole frame intervals)",
             0.0, None, True,
         ),
     },

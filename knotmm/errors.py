@@ -37,3 +37,7 @@ class SimulationFault(KnotmmError, RuntimeError):
     """
 
     exit_code = 3
+
+
+class KnotTypeChanged(SimulationFault):
+    """The knot type changed during a run with ``run.on_topology_change = "stop"``."""

@@ -225,6 +225,15 @@ class RK23(_Adaptive):
         super().__init__(timestep, tolerance, max_timestep, min_timestep)
         self._err_old = 1.0
 
+    def get_state(self):
+        state = super().get_state()
+        state["err_old"] = self._err_old
+        return state
+
+    def set_state(self, state):
+        super().set_state(state)
+        self._err_old = float(state.get("err_old", 1.0))
+
     def _pi_factor(self, err: float) -> float:
         """Proportional-integral step factor (exponents 0.7/3 and 0.4/3, Gustafsson).
 
@@ -343,6 +352,8 @@ class RKC2(_Adaptive):
             rho=self.rho if self.rho is not None else -1.0,
             err_old=self._err_old if self._err_old is not None else -1.0,
             h_old=self._h_old if self._h_old is not None else -1.0,
+            steps_since_rho=self._steps_since_rho,
+            eigenvector=None if self._eig is None else self._eig.tolist(),
         )
         return state
 
@@ -354,6 +365,9 @@ class RKC2(_Adaptive):
         self._err_old = err_old if err_old > 0 else None
         h_old = float(state.get("h_old", -1.0))
         self._h_old = h_old if h_old > 0 else None
+        self._steps_since_rho = int(state.get("steps_since_rho", 0))
+        eig = state.get("eigenvector")
+        self._eig = None if eig is None else np.asarray(eig, dtype=np.float64)
 
     def _coefficients(self, s):
         if s not in self._coeff_cache:

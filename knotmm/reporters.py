@@ -82,7 +82,7 @@ class DCDReporter(_TimeScheduled):
             self._file.seek(0, 2)
         # The header's time step is the frame interval (tau_d read as ps): one "step" per frame.
         self._dcd = openmm.app.DCDFile(
-            self._file, topology, self.interval, firstStep=first_index, interval=1, append=append
+            self._file, topology, self.interval, firstStep=0, interval=1, append=append
         )
 
     def report(self, simulation, state) -> None:
@@ -173,3 +173,55 @@ class ProgressReporter(_TimeScheduled):
         if self._bar is not None:
             self._bar.close()
             self._bar = None
+
+
+class KnotTypeWatch(_TimeScheduled):
+    """Check the knot type every ``interval`` tau_d (topoly) and react to a change.
+
+    A bead model can let one strand pass through another when the strands are pressed
+    together (model.md): this reporter notices it. Every change is recorded in
+    :attr:`changes` as ``(time, old_type, new_type)``; with ``on_change="stop"`` the run stops
+    with :class:`knotmm.errors.KnotTypeChanged`, otherwise a warning is logged.
+
+    Parameters
+    ----------
+    interval : float
+        In tau_d.
+    expected : str or None
+        Knot type at the start (None: taken from the first check).
+    on_change : {"warn", "stop"}
+    first_index : int
+    """
+
+    def __init__(self, interval, expected=None, on_change="warn", first_index=0):
+        super().__init__(interval, first_index)
+        self.current = expected
+        self.on_change = on_change
+        self.changes: list[tuple[float, str | None, str | None]] = []
+        self.checks = 0
+
+    def report(self, simulation, state) -> None:
+        from knotmm.errors import KnotTypeChanged
+        from knotmm.knots import identify_knot
+
+        self._advance()
+        found = identify_knot(simulation.positions)
+        self.checks += 1
+        if found is None:
+            return
+        if self.current is None:
+            self.current = found
+            return
+        if found != self.current:
+            self.changes.append((simulation.time, self.current, found))
+            message = (
+                f"the knot type changed from {self.current} to {found} at t = "
+                f"{simulation.time:.6g} tau_d (step {simulation.currentStep}): strands passed "
+                f"through each other"
+            )
+            self.current = found
+            if self.on_change == "stop":
+                raise KnotTypeChanged(message + "; run.on_topology_change = \"stop\"")
+            import logging
+
+            logging.getLogger(__name__).warning(message)

@@ -34,13 +34,13 @@ import numpy as np
 
 from knotmm import __version__
 from knotmm.config import RunConfig, read_toml
-from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault
+from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault, TrajectoryFileError
 from knotmm.integrators import make_integrator
 from knotmm.reporters import DCDReporter, ObservablesReporter, ProgressReporter
 from knotmm.simulation import Simulation, select_platform
 from knotmm.system import ChainModel
 
-__all__ = ["RunResult", "run", "prepare_directory", "RUN_FILES", "write_atomic"]
+__all__ = ["RunResult", "run", "resume", "prepare_directory", "RUN_FILES", "write_atomic"]
 
 log = logging.getLogger(__name__)
 
@@ -102,10 +102,12 @@ class RunResult:
     frames: int
     wall_time: float
     sedimentation_velocity: float
+    session_steps: int = -1
 
     def summary(self) -> str:
         """The one-line summary the CLI prints."""
-        rate = self.steps / self.wall_time if self.wall_time > 0 else math.inf
+        steps = self.steps if self.session_steps < 0 else self.session_steps
+        rate = steps / self.wall_time if self.wall_time > 0 else math.inf
         return (
             f"simulated {self.time:g} tau_d, mean sedimentation speed "
             f"{self.sedimentation_velocity:.4f} d/tau_d, wall time {self.wall_time:.1f} s, "
@@ -154,7 +156,9 @@ def prepare_directory(directory: Path, overwrite: bool) -> None:
     """
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
-        raise RunDirectoryError(f"output directory {str(directory)!r} is a file; choose another --out")
+        raise RunDirectoryError(
+            f"output directory {str(directory)!r} is a file; choose another --out"
+        )
     if not directory.exists() or not any(directory.iterdir()):
         return
     status = run_status(directory)
@@ -193,6 +197,33 @@ def write_run_toml(directory: Path, cfg: RunConfig, facts: dict) -> None:
     write_atomic(Path(directory) / "run.toml", _header(cfg) + tomli_w.dumps(data))
 
 
+def _make_simulation(cfg: RunConfig, positions) -> Simulation:
+    model = ChainModel.from_config(cfg)
+    integrator = make_integrator(
+        cfg["run.integrator"],
+        cfg["run.timestep"],
+        cfg["run.tolerance"],
+        cfg["run.max_timestep"],
+        cfg["run.min_timestep"],
+    )
+    return Simulation(
+        positions,
+        model,
+        integrator,
+        platform=cfg["run.platform"],
+        threads=cfg["run.threads"],
+        max_bond_length=cfg["run.max_bond_length"],
+    )
+
+
+def _check_peclet(cfg: RunConfig) -> None:
+    if math.isfinite(cfg["run.peclet"]):
+        raise ConfigError(
+            f"run.peclet = {cfg['run.peclet']!r}: Brownian dynamics is not available in this "
+            f"version; remove the key (deterministic, Pe = inf)"
+        )
+
+
 def run(
     cfg: RunConfig,
     directory: str | os.PathLike | None = None,
@@ -221,44 +252,27 @@ def run(
     ConfigError, TemplateError, RunDirectoryError
         Before anything is written.
     SimulationFault
-        If the dynamics breaks down; the files written so far are kept and ``run.toml``
-        says ``status = "fault"`` with the message.
+        If the dynamics breaks down; the files written so far are kept, a last checkpoint
+        of the last good state is written, and ``run.toml`` says ``status = "fault"`` with
+        the message.
     """
+    from knotmm.pdbfile import write_pdb
     from knotmm.templates import build_template
 
     wall0 = time.perf_counter()
     directory = Path(directory if directory is not None else cfg["output.directory"])
-    if math.isfinite(cfg["run.peclet"]):
-        raise ConfigError(
-            f"run.peclet = {cfg['run.peclet']!r}: Brownian dynamics is not available in this "
-            f"version; remove the key (deterministic, Pe = inf)"
-        )
+    _check_peclet(cfg)
     template = build_template(cfg)
     if template.resolved:
         cfg = cfg.replace(template.resolved)
     n_beads = template.positions.shape[0]
     select_platform(cfg["run.platform"], n_beads, cfg["run.threads"])  # fails before writing
     prepare_directory(directory, overwrite)
+    if cfg["output.directory"] != str(directory):
+        cfg = cfg.replace({"output.directory": str(directory)})
 
-    model = ChainModel.from_config(cfg)
-    integrator = make_integrator(
-        cfg["run.integrator"],
-        cfg["run.timestep"],
-        cfg["run.tolerance"],
-        cfg["run.max_timestep"],
-        cfg["run.min_timestep"],
-    )
-    sim = Simulation(
-        template.positions,
-        model,
-        integrator,
-        platform=cfg["run.platform"],
-        threads=cfg["run.threads"],
-        max_bond_length=cfg["run.max_bond_length"],
-    )
+    sim = _make_simulation(cfg, template.positions)
     directory.mkdir(parents=True, exist_ok=True)
-    from knotmm.pdbfile import write_pdb
-
     write_pdb(directory / "topology.pdb", template.positions)
     write_atomic(directory / "view.vmd", VMD_SCRIPT.format(version=__version__))
     facts = {
@@ -272,24 +286,117 @@ def run(
         "integrator": sim.integrator.describe(),
         "platform": sim.platform_name,
         "frame_interval": cfg["output.frame_interval"],
+        "start_z": float(sim.positions[:, 2].mean()),
     }
     if template.notes:
         facts["notes"] = list(template.notes)
     write_run_toml(directory, cfg, facts)
+    return _drive(sim, cfg, directory, facts, None, progress, wall0)
 
+
+def resume(directory: str | os.PathLike, progress: bool | None = None) -> RunResult:
+    """Continue a run that was stopped or killed, from its last checkpoint.
+
+    The trajectory and the observables are cut back to what the checkpoint counts and then
+    appended to; a deterministic run continues exactly as if it had never stopped.
+
+    Raises
+    ------
+    TrajectoryFileError, ConfigError
+        If the directory holds no resumable run (no run.toml or checkpoint, damaged files).
+    RunDirectoryError
+        If the run already finished.
+    """
+    from knotmm.checkpoint import CHECKPOINT_NAME, load_checkpoint, truncate_csv, truncate_dcd
+    from knotmm.config import load_run_file
+
+    wall0 = time.perf_counter()
+    directory = Path(directory)
+    if not (directory / "run.toml").exists():
+        raise TrajectoryFileError(
+            f"--resume {str(directory)!r}: no run.toml there; give the directory of a knotmm run"
+        )
+    raw = read_toml(directory / "run.toml")
+    facts = dict(raw.get("knotmm", {}))
+    status = facts.get("status")
+    if status == "finished":
+        raise RunDirectoryError(
+            f"--resume {str(directory)!r}: the run already finished; run longer with a new "
+            f"run file (its run.toml, with a larger run.duration) in another directory"
+        )
+    cfg = load_run_file(directory / "run.toml")
+    _check_peclet(cfg)
+    ckpt = load_checkpoint(directory / CHECKPOINT_NAME)
+    if ckpt["integrator"] != cfg["run.integrator"]:
+        raise TrajectoryFileError(
+            f"checkpoint integrator {ckpt['integrator']!r} differs from run.integrator = "
+            f"{cfg['run.integrator']!r} in run.toml; the files do not belong together"
+        )
+    counters = ckpt["counters"]
+    truncate_dcd(directory / "trajectory.dcd", int(counters["frames"]))
+    truncate_csv(directory / "observables.csv", int(counters["rows"]))
+    sim = _make_simulation(cfg, ckpt["positions"])
+    sim.integrator.set_state(ckpt["integrator_state"])
+    sim.time = ckpt["time"]
+    sim.currentStep = ckpt["step"]
+    sim.n_evaluations = ckpt["evaluations"]
+    facts.update(status="running", resumed_at=sim.time, message=None)
+    write_run_toml(directory, cfg, facts)
+    log.info("resuming %s at t = %g tau_d (step %d)", directory, sim.time, sim.currentStep)
+    return _drive(sim, cfg, directory, facts, counters, progress, wall0)
+
+
+def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
+    """Attach the reporters, run to ``run.duration``, and record the outcome in run.toml."""
+    from knotmm.checkpoint import CHECKPOINT_NAME, CheckpointReporter
+    from knotmm.knots import topoly_available
+    from knotmm.reporters import KnotTypeWatch
+
+    resuming = counters is not None
+    counters = counters or {"frames": 0, "rows": 0, "checkpoints": 0, "checks": 0}
     frame_interval = cfg["output.frame_interval"]
     obs_interval = cfg["output.observables_interval"] or frame_interval
-    dcd = DCDReporter(directory / "trajectory.dcd", frame_interval, sim.topology)
-    obs = ObservablesReporter(directory / "observables.csv", obs_interval)
+    ckpt_interval = frame_interval * max(1, math.ceil(cfg["output.checkpoint_interval"]
+                                                      / frame_interval - 1e-9))
+    dcd = DCDReporter(directory / "trajectory.dcd", frame_interval, sim.topology,
+                      append=resuming, first_index=counters["frames"])
+    obs = ObservablesReporter(directory / "observables.csv", obs_interval, append=resuming,
+                              first_index=counters["rows"])
+    reporters = [dcd, obs]
+    watch = None
+    if cfg["run.topology_check_interval"] > 0 and topoly_available():
+        watch = KnotTypeWatch(
+            cfg["run.topology_check_interval"],
+            expected=facts.get("knot_type") or facts.get("template_knot_type"),
+            on_change=cfg["run.on_topology_change"],
+            first_index=max(1, counters.get("checks", 0)),
+        )
+        reporters.append(watch)
+
+    def current_counters():
+        return {
+            "frames": dcd.index,
+            "rows": obs.index,
+            "checkpoints": ckpt.index + 1,
+            "checks": watch.index if watch else 0,
+        }
+
+    ckpt = CheckpointReporter(directory / CHECKPOINT_NAME, ckpt_interval, current_counters,
+                              first_index=counters.get("checkpoints", 0))
+    reporters.append(ckpt)
     duration = cfg["run.duration"]
-    bar = ProgressReporter(0.0, duration, frame_interval, enabled=progress)
-    sim.reporters.extend([dcd, obs, bar])
-    z0 = float(sim.positions[:, 2].mean())
+    bar = ProgressReporter(sim.time, duration, frame_interval, enabled=progress)
+    reporters.append(bar)
+    sim.reporters.extend(reporters)
+    z0 = float(facts.get("start_z", sim.positions[:, 2].mean()))
+    steps0 = sim.currentStep
     status, message = "finished", None
     try:
-        sim.run(duration)
+        if duration > sim.time:
+            sim.run(duration - sim.time, write_at_start=not resuming)
     except SimulationFault as exc:
         status, message = "fault", str(exc)
+        ckpt.save_now(sim)  # the last good state
         raise
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"
@@ -308,6 +415,7 @@ def run(
             frames=dcd.index,
             wall_time=wall,
             sedimentation_velocity=velocity,
+            session_steps=sim.currentStep - steps0,
         )
         facts.update(
             status=status,
@@ -321,5 +429,11 @@ def run(
             mean_sedimentation_velocity=velocity,
             final_max_bond=float(np.max(sim.bond_lengths())),
         )
+        if watch is not None:
+            facts["knot_type"] = watch.current
+            facts["knot_type_checks"] = int(facts.get("knot_type_checks", 0)) + watch.checks
+            changes = list(facts.get("knot_type_changes", []))
+            changes += [{"time": t, "from": str(a), "to": str(b)} for t, a, b in watch.changes]
+            facts["knot_type_changes"] = changes
         write_run_toml(directory, cfg, facts)
     return result

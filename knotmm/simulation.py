@@ -290,7 +290,7 @@ class Simulation:
                     includes.update(desc.get("include", []))
                 else:
                     names = ["positions", "velocities", "forces", "energy"]
-                    includes.update(n for n, flag in zip(names, desc[1:5]) if flag)
+                    includes.update(n for n, flag in zip(names, desc[1:5], strict=False) if flag)
             if "velocities" in includes:
                 self.context.setVelocities(self.velocity(self.positions))
             state = self.context.getState(

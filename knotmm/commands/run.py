@@ -24,6 +24,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, metavar="T", help="simulated time, in tau_d")
     p.add_argument("--beads", type=int, metavar="N", help="number of beads")
     p.add_argument("--overwrite", action="store_true", help="replace an existing run directory")
+    p.add_argument("--resume", metavar="DIR",
+                   help="continue a stopped or killed run from its last checkpoint")
     p.add_argument(
         "--set",
         action="append",
@@ -62,8 +64,20 @@ def config_from_args(args) -> RunConfig:
 
 def execute(args) -> int:
     """Run and print the one-line summary."""
-    from knotmm.runner import run
+    from knotmm.errors import ConfigError
+    from knotmm.runner import resume, run
 
+    if args.resume:
+        given = [o for o, v in (("RUN.toml", args.run_file), ("--out", args.out),
+                                ("--duration", args.duration), ("--beads", args.beads),
+                                ("--set", args.set), ("--overwrite", args.overwrite)) if v]
+        if given:
+            raise ConfigError(
+                f"--resume takes no other run options (got {', '.join(given)}): a resumed run "
+                f"keeps the parameters in its run.toml"
+            )
+        print(resume(args.resume, progress=args.progress).summary())
+        return 0
     cfg = config_from_args(args)
     result = run(cfg, overwrite=args.overwrite, progress=args.progress)
     print(result.summary())
