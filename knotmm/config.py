@@ -111,14 +111,18 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "lj_sigma": Key("float", 0.5, "steric length sigma, in d", 0.0, None, True),
         "lj_epsilon": Key("float", 0.25, "steric energy eps, in F0 d", 0.0),
         "gravity": Key("float", 1.0, "force on each bead along -z, in F0", 0.0),
+        "segment_repulsion": Key(
+            "bool", False,
+            "true: steric sites at bond midpoints forbid strand passage (not the study's model)",
+        ),
     },
     "run": {
         "duration": Key("float", 200.0, "simulated time, in tau_d", 0.0, None, True),
         "integrator": Key(
             "str", "rk23",
             "time stepper: rk23 (adaptive, default), rkc2 (adaptive, for very stiff chains), "
-            "heun, midpoint, euler",
-            choices=("rk23", "rkc2", "heun", "midpoint", "euler"),
+            "heun, midpoint, euler; finite run.peclet: ito_heun or euler_maruyama (fixed step)",
+            choices=("rk23", "rkc2", "heun", "midpoint", "euler", "ito_heun", "euler_maruyama"),
         ),
         "timestep": Key(
             "float", 0.01, "step in tau_d; the first step of an adaptive integrator",
@@ -144,6 +148,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
                         choices=("auto", "Reference", "CPU", "CUDA", "OpenCL", "HIP")),
         "threads": Key("int", 1, "CPU platform threads", 1),
         "seed": Key("int", 1, "random seed (noise, perturbations)", 0),
+        "noise": Key(
+            "str", "auto",
+            "Brownian noise sqrt(mu) xi: auto (cholesky up to 300 beads, else lanczos), "
+            "cholesky (exact), lanczos (Krylov, matrix-free)",
+            choices=("auto", "cholesky", "lanczos"),
+        ),
+        "lanczos_tolerance": Key(
+            "float", 1e-6, "lanczos noise: relative change between successive iterates",
+            0.0, None, True,
+        ),
         "topology_check_interval": Key(
             "float", 10.0,
             "time between knot-type checks (topoly), in tau_d; 0 switches them off", 0.0,

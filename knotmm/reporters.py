@@ -188,7 +188,10 @@ class KnotTypeWatch(_TimeScheduled):
     interval : float
         In tau_d.
     expected : str or None
-        Knot type at the start (None: taken from the first check).
+        Chiral knot type at the start, as :func:`knotmm.knots.identify_knot` with
+        ``chiral=True`` names it (``"+3_1"``); None: taken from the first check. Chirality
+        counts: strand passages that turn a right-handed trefoil into a left-handed one are
+        reported.
     on_change : {"warn", "stop"}
     first_index : int
     """
@@ -205,7 +208,7 @@ class KnotTypeWatch(_TimeScheduled):
         from knotmm.knots import identify_knot
 
         self._advance()
-        found = identify_knot(simulation.positions)
+        found = identify_knot(simulation.positions, chiral=True)
         self.checks += 1
         if found is None:
             return

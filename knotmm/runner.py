@@ -365,9 +365,15 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
     reporters = [dcd, obs]
     watch = None
     if cfg["run.topology_check_interval"] > 0 and topoly_available():
+        from knotmm.knots import identify_knot
+
+        expected = facts.get("knot_type") if resuming else None
+        if expected is None:
+            expected = identify_knot(sim.positions, chiral=True)
+            facts["knot_type_start"] = expected
         watch = KnotTypeWatch(
             cfg["run.topology_check_interval"],
-            expected=facts.get("knot_type") or facts.get("template_knot_type"),
+            expected=expected,
             on_change=cfg["run.on_topology_change"],
             first_index=max(1, counters.get("checks", 0)),
         )

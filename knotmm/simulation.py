@@ -34,7 +34,14 @@ from openmm import unit
 from knotmm.errors import ConfigError, SimulationFault
 from knotmm.integrators import RK23, Integrator, StepSizeUnderflow
 from knotmm.mobility import rpy_velocities
-from knotmm.system import FORCE_GROUPS, ChainModel, build_system, build_topology, ring_bonds
+from knotmm.system import (
+    FORCE_GROUPS,
+    ChainModel,
+    build_system,
+    build_topology,
+    ring_bonds,
+    site_positions,
+)
 
 __all__ = ["Simulation", "select_platform"]
 
@@ -137,9 +144,14 @@ class Simulation:
     # -- physics ------------------------------------------------------------------------
     def forces(self, positions: np.ndarray) -> np.ndarray:
         """Total force on every bead, shape (n_beads, 3), in F0 (from the OpenMM Context)."""
-        self.context.setPositions(positions - positions.mean(axis=0))
+        shifted = positions - positions.mean(axis=0)
+        if self.model.segment_repulsion:
+            shifted = site_positions(shifted, self.model)
+        self.context.setPositions(shifted)
         state = self.context.getState(getForces=True)
-        return state.getForces(asNumpy=True).value_in_unit(_FORCE_UNIT)
+        forces = state.getForces(asNumpy=True).value_in_unit(_FORCE_UNIT)
+        # forces on midpoint sites are already distributed onto their beads by OpenMM
+        return forces[: self.n_beads] if self.model.segment_repulsion else forces
 
     def velocity(self, positions: np.ndarray) -> np.ndarray:
         """Bead velocities ``mu(r) F(r)``, shape (n_beads, 3), in d/tau_d."""
@@ -153,7 +165,7 @@ class Simulation:
         """
         pos = self.positions if positions is None else positions
         shift = pos.mean(axis=0)
-        self.context.setPositions(pos - shift)
+        self.context.setPositions(site_positions(pos - shift, self.model))
         out = {}
         for name, group in FORCE_GROUPS.items():
             state = self.context.getState(getEnergy=True, groups={group})
@@ -191,7 +203,7 @@ class Simulation:
 
     def _sync_context(self) -> None:
         """Put the current positions, step count and time into the Context (for reporters)."""
-        self.context.setPositions(self.positions)
+        self.context.setPositions(site_positions(self.positions, self.model))
         self.context.setTime(self.time)
         self.context.setStepCount(self.currentStep)
 

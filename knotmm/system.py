@@ -61,6 +61,14 @@ class ChainModel:
         ``eps`` of the truncated Lennard-Jones term (no factor 4), in F0 d.
     gravity : float
         Force on each bead along ``-z``, in F0.
+    segment_repulsion : bool
+        Off by default (the study's model). When on, every bond carries a massless steric
+        site at its midpoint (an OpenMM virtual site) that repels beads and other midpoints
+        with the same truncated Lennard-Jones term, so that along the chain a steric site
+        sits every ``l0/2``. Two strands crossing at any point then meet sites at most
+        about ``0.21 d`` apart, a barrier of thousands of F0 d: strands cannot pass through
+        each other. Sites are excluded from their own two beads, their neighbouring beads
+        and the neighbouring midpoints, so the local chain mechanics is unchanged.
     """
 
     bond_length: float = 0.6
@@ -69,6 +77,7 @@ class ChainModel:
     lj_sigma: float = 0.5
     lj_epsilon: float = 0.25
     gravity: float = 1.0
+    segment_repulsion: bool = False
 
     @property
     def steric_range(self) -> float:
@@ -78,7 +87,11 @@ class ChainModel:
     @classmethod
     def from_config(cls, cfg) -> ChainModel:
         """Take the ``[model]`` table of a :class:`knotmm.config.RunConfig`."""
-        return cls(**{k: float(v) for k, v in cfg.table("model").items()})
+        values = cfg.table("model")
+        flags = {"segment_repulsion"}
+        kwargs = {k: (bool(v) if k in flags else float(v)) for k, v in values.items()
+                  if k in cls.__dataclass_fields__}
+        return cls(**kwargs)
 
 
 def ring_bonds(n_beads: int) -> np.ndarray:
@@ -133,10 +146,18 @@ def steric_force(n_beads: int, model: ChainModel) -> openmm.NonbondedForce:
     force.setUseSwitchingFunction(False)
     force.setUseDispersionCorrection(False)
     force.setReactionFieldDielectric(1.0)
-    for _ in range(n_beads):
+    n_sites = 2 * n_beads if model.segment_repulsion else n_beads
+    for _ in range(n_sites):
         force.addParticle(0.0, model.lj_sigma, model.lj_epsilon / 4.0)
     for i, j in ring_bonds(n_beads):
         force.addException(int(i), int(j), 0.0, model.lj_sigma, 0.0)
+    if model.segment_repulsion:
+        # midpoint site of bond k is particle n + k; it sits between beads k and k+1
+        for k in range(n_beads):
+            site = n_beads + k
+            for bead in (k - 1, k, k + 1, k + 2):
+                force.addException(site, bead % n_beads, 0.0, model.lj_sigma, 0.0)
+            force.addException(site, n_beads + (k + 1) % n_beads, 0.0, model.lj_sigma, 0.0)
     force.setName("steric")
     return force
 
@@ -165,7 +186,9 @@ def build_system(positions, model: ChainModel | None = None) -> openmm.System:
     -------
     openmm.System
         Unit-mass particles and the four named forces, each in its group of
-        :data:`FORCE_GROUPS`.
+        :data:`FORCE_GROUPS`. With ``model.segment_repulsion`` the System has ``n_beads``
+        more particles, the bond midpoints (massless virtual sites), after the beads; see
+        :func:`site_positions`.
     """
     pos = _check_positions(positions)
     model = ChainModel() if model is None else model
@@ -173,6 +196,10 @@ def build_system(positions, model: ChainModel | None = None) -> openmm.System:
     system = openmm.System()
     for _ in range(n):
         system.addParticle(1.0)
+    if model.segment_repulsion:
+        for k in range(n):
+            site = system.addParticle(0.0)
+            system.setVirtualSite(site, openmm.TwoParticleAverageSite(k, (k + 1) % n, 0.5, 0.5))
     makers = {
         "bond": bond_force,
         "bend": bend_force,
@@ -184,6 +211,22 @@ def build_system(positions, model: ChainModel | None = None) -> openmm.System:
         force.setForceGroup(group)
         system.addForce(force)
     return system
+
+
+def site_positions(positions: np.ndarray, model: ChainModel) -> np.ndarray:
+    """Positions of every particle of the System: the beads, then any bond midpoints.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n_beads, 3), in d
+
+    Returns
+    -------
+    ndarray, shape (n_beads, 3) or (2 n_beads, 3)
+    """
+    if not model.segment_repulsion:
+        return positions
+    return np.concatenate([positions, 0.5 * (positions + np.roll(positions, -1, axis=0))])
 
 
 def build_topology(n_beads: int) -> openmm.app.Topology:

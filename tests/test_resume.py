@@ -1,0 +1,126 @@
+"""Kill a run with SIGKILL at several moments, resume it, and compare with an uninterrupted run."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import mdtraj
+import numpy as np
+import pytest
+
+from knotmm.cli import main
+from knotmm.config import RunConfig
+from knotmm.runner import run
+
+SETTINGS = {
+    "knot": {"beads": 40},
+    "run": {"duration": 12.0, "topology_check_interval": 0.0},
+    "output": {"frame_interval": 0.5, "checkpoint_interval": 1.0},
+}
+
+
+def _write_run_file(path: Path, directory: Path) -> Path:
+    text = (
+        "[knot]\nbeads = 40\n[run]\nduration = 12.0\ntopology_check_interval = 0.0\n"
+        f"[output]\ndirectory = {str(directory)!r}\nframe_interval = 0.5\n"
+        "checkpoint_interval = 1.0\n"
+    )
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("ref") / "run"
+    run(RunConfig.from_dict(SETTINGS), directory=directory, progress=False)
+    return directory
+
+
+def _load(directory: Path):
+    traj = mdtraj.load(str(directory / "trajectory.dcd"), top=str(directory / "topology.pdb"))
+    rows = (directory / "observables.csv").read_text().splitlines()
+    return traj, rows
+
+
+def _checkpoints_written(directory: Path) -> int:
+    path = directory / "checkpoint.npz"
+    if not path.exists():
+        return 0
+    try:
+        with np.load(path) as data:
+            return int(float(data["time"]) / 1.0) + 1
+    except Exception:  # noqa: BLE001 - being replaced right now
+        return 0
+
+
+@pytest.mark.parametrize("kill_after_checkpoints", [1, 4, 9])
+def test_kill_and_resume_equals_uninterrupted(tmp_path, reference, kill_after_checkpoints):
+    directory = tmp_path / "run"
+    run_file = _write_run_file(tmp_path / "run.toml", directory)
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "knotmm.cli", "run", str(run_file), "--no-progress"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=env,
+    )
+    deadline = time.monotonic() + 120
+    while _checkpoints_written(directory) < kill_after_checkpoints and proc.poll() is None:
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    if proc.returncode == 0:  # finished before the kill: nothing to resume
+        pytest.skip("the run finished before it could be killed")
+    assert main(["run", "--resume", str(directory), "--no-progress"]) == 0
+    traj, rows = _load(directory)
+    ref_traj, ref_rows = _load(reference)
+    assert traj.n_frames == ref_traj.n_frames == 25
+    # float32 frames: equal to the precision of the file
+    np.testing.assert_allclose(traj.xyz, ref_traj.xyz, rtol=0, atol=1e-5)
+    assert len(rows) == len(ref_rows)
+    for a, b in zip(rows[1:], ref_rows[1:], strict=True):
+        ta, tb = a.split(","), b.split(",")
+        assert ta[:2] == tb[:2]  # time and step
+        np.testing.assert_allclose([float(v) for v in ta[2:5]], [float(v) for v in tb[2:5]],
+                                   atol=1e-6)
+
+
+def test_resume_of_a_finished_run_is_refused(reference, capsys):
+    assert main(["run", "--resume", str(reference)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "already finished" in err[0]
+
+
+def test_resume_with_a_corrupt_checkpoint_says_so(tmp_path, reference, capsys):
+    directory = tmp_path / "copy"
+    directory.mkdir()
+    for f in reference.iterdir():
+        (directory / f.name).write_bytes(f.read_bytes())
+    text = (directory / "run.toml").read_text().replace('status = "finished"',
+                                                        'status = "running"')
+    (directory / "run.toml").write_text(text)
+    (directory / "checkpoint.npz").write_bytes(b"not a checkpoint")
+    before = (directory / "trajectory.dcd").read_bytes()
+    assert main(["run", "--resume", str(directory)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "checkpoint" in err[0] and "unreadable" in err[0]
+    assert (directory / "trajectory.dcd").read_bytes() == before
+
+
+def test_resume_with_a_truncated_trajectory_says_so(tmp_path, reference, capsys):
+    directory = tmp_path / "copy"
+    directory.mkdir()
+    for f in reference.iterdir():
+        (directory / f.name).write_bytes(f.read_bytes())
+    text = (directory / "run.toml").read_text().replace('status = "finished"',
+                                                        'status = "running"')
+    (directory / "run.toml").write_text(text)
+    dcd = directory / "trajectory.dcd"
+    dcd.write_bytes(dcd.read_bytes()[:2000])
+    assert main(["run", "--resume", str(directory)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "frames" in err[0]
