@@ -1,0 +1,75 @@
+"""Analysis of saved trajectories: the observables of the sedimenting-knot study.
+
+Measured on a steady window of a run, in model units (d, tau_d): the sedimentation speed V,
+the major radius rho0 (and N l0 / (2 pi p)), tau_sed = 2 rho0 / V, the swirl and rotation
+periods from Fourier spectra, a per-bead fit of the vortex-knot formula (model.md,
+"Observables") with the scaled coordinates that collapse all beads, the writhe and
+handedness, the rotation sense seen from above, and the knot type along the run.
+
+Examples
+--------
+>>> from knotmm.analysis import analyze_run
+>>> result = analyze_run("runs/trefoil")                      # doctest: +SKIP
+>>> result.to_dict()["tau_swirl_over_tau_sed"]                # doctest: +SKIP
+
+Modules: :mod:`~knotmm.analysis.io` (loading), :mod:`~knotmm.analysis.window` (steady
+window), :mod:`~knotmm.analysis.spectra`, :mod:`~knotmm.analysis.fit`,
+:mod:`~knotmm.analysis.topology`, :mod:`~knotmm.analysis.plots` (imported on first use),
+:mod:`~knotmm.analysis.synthetic` (trajectories with known answers).
+"""
+
+from knotmm.analysis.core import ANALYSIS_FILE, analyze, analyze_run
+from knotmm.analysis.fit import ScaledCoordinates, VortexFit, fit_vortex_knot, scaled_coordinates
+from knotmm.analysis.geometry import Cylindrical, cylindrical, winding_numbers
+from knotmm.analysis.io import RunData, load_run
+from knotmm.analysis.result import AnalysisResult, format_table
+from knotmm.analysis.spectra import SpectralPeak, Spectrum, rotation_spectrum, swirl_spectrum
+from knotmm.analysis.topology import KnotTypes, handedness, knot_types, rotation_sense
+from knotmm.analysis.window import Window, steady_window
+
+_PLOTS = (
+    "plot_com_height",
+    "plot_bead_coordinate",
+    "plot_time_series",
+    "plot_spectrum",
+    "plot_collapse",
+    "plot_snapshot",
+    "save_plots",
+)
+
+__all__ = [
+    "ANALYSIS_FILE",
+    "AnalysisResult",
+    "Cylindrical",
+    "KnotTypes",
+    "RunData",
+    "ScaledCoordinates",
+    "SpectralPeak",
+    "Spectrum",
+    "VortexFit",
+    "Window",
+    "analyze",
+    "analyze_run",
+    "cylindrical",
+    "fit_vortex_knot",
+    "format_table",
+    "handedness",
+    "knot_types",
+    "load_run",
+    "rotation_sense",
+    "rotation_spectrum",
+    "scaled_coordinates",
+    "steady_window",
+    "swirl_spectrum",
+    "winding_numbers",
+    *_PLOTS,
+]
+
+
+def __getattr__(name: str):
+    # plotting imports matplotlib; load it only when a plot function is asked for
+    if name in _PLOTS:
+        from knotmm.analysis import plots
+
+        return getattr(plots, name)
+    raise AttributeError(f"module 'knotmm.analysis' has no attribute {name!r}")

@@ -1,0 +1,273 @@
+"""The analysis pipeline: window -> observables -> spectra -> fit -> topology -> files."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+
+from knotmm.analysis.fit import fit_vortex_knot
+from knotmm.analysis.geometry import cylindrical, winding_numbers
+from knotmm.analysis.io import RunData, load_run
+from knotmm.analysis.result import AnalysisResult
+from knotmm.analysis.spectra import rotation_spectrum, swirl_spectrum
+from knotmm.analysis.topology import (
+    KnotTypes,
+    handedness,
+    knot_types,
+    mean_writhe,
+    rotation_sense,
+)
+from knotmm.analysis.window import steady_window
+from knotmm.errors import ConfigError
+
+__all__ = ["analyze", "analyze_run", "ANALYSIS_FILE"]
+
+logger = logging.getLogger(__name__)
+
+#: Name of the result file written into the run directory.
+ANALYSIS_FILE = "analysis.json"
+
+
+def _check_int(value, name: str) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or int(value) != value or int(value) < 1:
+        raise ConfigError(f"{name} {value!r}: expected a positive integer")
+    return int(value)
+
+
+def _detected(windings: np.ndarray) -> int | None:
+    value = int(round(abs(float(np.median(windings)))))
+    return value if value >= 1 else None
+
+
+def _velocity(times: np.ndarray, z_com: np.ndarray) -> tuple[float, float]:
+    """Falling speed (positive down) and the standard error of the slope."""
+    s = times - times.mean()
+    slope = float((s * (z_com - z_com.mean())).sum() / (s * s).sum())
+    resid = z_com - z_com.mean() - slope * s
+    err = math.sqrt(float((resid**2).sum()) / max(len(s) - 2, 1) / float((s * s).sum()))
+    return -slope, err
+
+
+def analyze(
+    data: RunData,
+    t_from: float | None = None,
+    t_to: float | None = None,
+    p: int | None = None,
+    q: int | None = None,
+    knot_samples: int = 40,
+    fit: bool = True,
+) -> AnalysisResult:
+    """Measure every observable of the study on a loaded trajectory (nothing is written).
+
+    Parameters
+    ----------
+    data : RunData
+        From :func:`load_run` (or :meth:`RunData.from_arrays`).
+    t_from, t_to : float, optional
+        Window start / end in tau_d, replacing the detected ones (see
+        :func:`knotmm.analysis.window.steady_window`).
+    p, q : int, optional
+        The torus knot T(p, q) used in the formulas. Default: ``knot.p``/``knot.q`` of a
+        torus-knot run file; else p is the winding number of the chain about the vertical
+        axis and q is reported as None (the fit then uses the detected core winding).
+    knot_samples : int
+        Frames identified with topoly when looking for a change of knot type (plus a
+        bisection); 0 skips knot identification.
+    fit : bool
+        False skips the vortex-knot fit.
+
+    Returns
+    -------
+    AnalysisResult
+    """
+    p = _check_int(p, "--p")
+    q = _check_int(q, "--q")
+    notes = list(data.notes)
+    times, positions = data.times, data.positions
+    window = steady_window(times, positions, t_from=t_from, t_to=t_to)
+    notes += window.notes
+    sel = window.frames
+    t_w, x_w = times[sel], positions[sel]
+    coords = cylindrical(positions)
+    rho, alpha, z_rel = coords.rho[sel], coords.alpha[sel], coords.z[sel]
+
+    # p and q
+    axis_w, core_w = winding_numbers(x_w[:: max(1, len(x_w) // 50)])
+    p_det, q_det = _detected(axis_w), _detected(core_w)
+    is_torus = data.get("knot.kind", "torus") == "torus"
+    p_cfg = data.get("knot.p") if is_torus else None
+    q_cfg = data.get("knot.q") if is_torus else None
+    if p is not None:
+        p_src = "argument"
+    elif p_cfg is not None:
+        p, p_src = int(p_cfg), "run file"
+    elif p_det is not None:
+        p, p_src = p_det, "data"
+    else:
+        p, p_src = 1, "default"
+        notes.append("the chain does not wind around the vertical axis: p = 1 assumed")
+    if p_det is not None and p_det != p:
+        notes.append(f"p = {p} ({p_src}) but the chain winds {p_det} times around the axis")
+    if q is not None:
+        q_src = "argument"
+    elif q_cfg is not None:
+        q, q_src = int(q_cfg), "run file"
+    else:
+        q_src = "unknown"
+    if q is not None and q_det is not None and q_det != q:
+        notes.append(f"q = {q} ({q_src}) but the chain winds {q_det} times around its core")
+
+    # V, rho0, geometric estimate
+    velocity, velocity_err = _velocity(t_w, coords.com[sel, 2])
+    radius_per_frame = rho.mean(axis=1)
+    rho0, rho0_std = float(radius_per_frame.mean()), float(radius_per_frame.std())
+    bond = data.get("model.bond_length")
+    if bond is None:
+        x0 = positions[0]
+        bond = float(np.median(np.linalg.norm(np.roll(x0, -1, axis=0) - x0, axis=1)))
+        notes.append(f"no model.bond_length in a run file: l0 = {bond:.4g} d measured at t = 0")
+    bond = float(bond)
+    rho_geo = data.n_beads * bond / (2.0 * math.pi * p)
+
+    # spectra
+    swirl = swirl_spectrum(t_w, rho, z_rel)
+    rot = rotation_spectrum(t_w, alpha)
+    length = t_w[-1] - t_w[0] + data.frame_interval
+    if swirl.peak.period > length / 2:
+        notes.append(
+            f"the window ({length:g} tau_d) holds fewer than two swirl periods: tau_swirl is "
+            "poorly determined"
+        )
+    if rot.peak.period > length:
+        notes.append(
+            f"the window ({length:g} tau_d) covers {length / rot.peak.period:.0%} of a "
+            f"rotation (tau_rot = {rot.peak.period:.4g} tau_d): tau_rot assumes the rotation "
+            "is steady"
+        )
+
+    # fit
+    vfit = None
+    q_fit = q if q is not None else q_det
+    amplitude = float(np.sqrt(2.0 * np.mean((rho - rho.mean(axis=0)) ** 2)))
+    if fit and q_fit is None:
+        notes.append("no q given and no core winding detected: vortex-knot fit skipped")
+    elif fit:
+        if q is None:
+            notes.append(f"q not known: the fit uses the detected core winding q = {q_fit}")
+        tau_rot_guess = 1.0 / rot.peak.frequency if rot.peak.frequency else math.inf
+        try:
+            vfit = fit_vortex_knot(
+                t_w, rho, alpha, x_w[..., 2], p, q_fit, swirl.peak.period, tau_rot_guess
+            )
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            notes.append(f"vortex-knot fit failed ({exc}); C is the rms swirl of rho")
+        if vfit is not None:
+            amplitude = vfit.swirl_amplitude
+            for name, spec, fitted in (
+                ("tau_swirl", swirl.peak.period, vfit.tau_swirl),
+                ("tau_rot", rot.peak.period, abs(vfit.tau_rot)),
+            ):
+                if abs(spec - fitted) > 0.05 * spec:
+                    notes.append(
+                        f"{name}: spectrum {spec:.4g} and fit {fitted:.4g} differ "
+                        "by more than 5%: the motion is not a clean vortex knot"
+                    )
+            if vfit.r2.get("total", 0) < 0.5:
+                notes.append(
+                    f"the vortex-knot formula explains only "
+                    f"{vfit.r2['total']:.0%} of the oscillation"
+                )
+
+    # topology
+    wr, wr_std = mean_writhe(x_w)
+    if knot_samples > 0:
+        kt = knot_types(times, positions, window.start, window.stop, samples=knot_samples)
+    else:
+        kt = KnotTypes(None, None, None, notes=["knot identification skipped"])
+    notes += kt.notes
+
+    return AnalysisResult(
+        sedimentation_velocity=velocity,
+        sedimentation_velocity_uncertainty=velocity_err,
+        major_radius=rho0,
+        major_radius_std=rho0_std,
+        major_radius_geometric=rho_geo,
+        swirl_amplitude=amplitude,
+        tau_swirl=swirl.peak.period,
+        tau_swirl_uncertainty=swirl.peak.period_uncertainty,
+        tau_rot=rot.peak.period,
+        tau_rot_uncertainty=rot.peak.period_uncertainty,
+        rotation_frequency=rot.peak.frequency,
+        rotation_sense=rotation_sense(rot.peak.frequency),
+        writhe=wr,
+        writhe_std=wr_std,
+        handedness=handedness(wr),
+        window=window,
+        p=p,
+        q=q,
+        p_detected=p_det,
+        q_detected=q_det,
+        p_source=p_src,
+        q_source=q_src,
+        bond_length=bond,
+        swirl_spectrum=swirl,
+        rotation_spectrum=rot,
+        fit=vfit,
+        knots=kt,
+        notes=notes,
+        data=data,
+        coords=coords,
+    )
+
+
+def analyze_run(
+    run_dir,
+    t_from: float | None = None,
+    t_to: float | None = None,
+    p: int | None = None,
+    q: int | None = None,
+    plots: bool = True,
+    frame_interval: float | None = None,
+    topology=None,
+    out_dir=None,
+    knot_samples: int = 40,
+) -> AnalysisResult:
+    """Load a run, analyse it, and write ``analysis.json`` (and PNG plots) beside it.
+
+    Parameters
+    ----------
+    run_dir : str or Path
+        A run directory or a DCD file (see :func:`load_run`).
+    t_from, t_to, p, q, knot_samples
+        As in :func:`analyze`.
+    plots : bool
+        Write ``analysis_timeseries.png``, ``analysis_spectrum.png``,
+        ``analysis_collapse.png`` and ``analysis_snapshot.png``.
+    frame_interval, topology
+        As in :func:`load_run`, for a DCD without ``run.toml``.
+    out_dir : str or Path, optional
+        Where to write; default the run directory (the DCD's folder for a bare DCD).
+
+    Returns
+    -------
+    AnalysisResult
+        Its ``to_dict()`` is the content written to ``analysis.json``.
+    """
+    data = load_run(run_dir, frame_interval=frame_interval, topology=topology)
+    result = analyze(data, t_from=t_from, t_to=t_to, p=p, q=q, knot_samples=knot_samples)
+    out = Path(out_dir) if out_dir is not None else data.directory
+    out.mkdir(parents=True, exist_ok=True)
+    if plots:
+        from knotmm.analysis.plots import save_plots
+
+        result.plots = [f.name for f in save_plots(result, out)]
+    path = out / ANALYSIS_FILE
+    path.write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n")
+    logger.info("wrote %s", path)
+    return result

@@ -1,0 +1,370 @@
+"""Loading saved trajectories into model units.
+
+A run directory written by ``knotmm run`` holds ``trajectory.dcd`` (Angstrom, 1 d = 10 A),
+``topology.pdb`` (one residue ``BEA`` per bead, CONECT records for every bond) and
+``run.toml`` (the resolved run file). :func:`load_run` reads such a directory, or any DCD
+with a matching PDB topology, and returns a :class:`RunData` with times in tau_d and
+positions in d.
+
+Examples
+--------
+>>> data = load_run("runs/trefoil")                                   # doctest: +SKIP
+>>> data.positions.shape, data.frame_interval                         # doctest: +SKIP
+((401, 90, 3), 0.5)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import re
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from knotmm.config import read_toml
+from knotmm.errors import ConfigError, TrajectoryFileError
+from knotmm.units import angstrom_to_d
+
+__all__ = ["RunData", "load_run", "config_value"]
+
+logger = logging.getLogger(__name__)
+
+TRAJECTORY_NAME = "trajectory.dcd"
+TOPOLOGY_NAME = "topology.pdb"
+RUN_FILE_NAME = "run.toml"
+
+
+@dataclass
+class RunData:
+    """A trajectory in model units, with what is known about the run that made it.
+
+    Attributes
+    ----------
+    times : ndarray, shape (n_frames,)
+        Time of each frame, in tau_d; frame 0 is t = 0.
+    positions : ndarray, shape (n_frames, n_beads, 3)
+        Bead positions, in d (gravity along -z).
+    bonds : ndarray, shape (n_bonds, 2)
+        Bonded bead pairs (indices), from the topology's CONECT records.
+    config : dict
+        The parsed ``run.toml`` (nested tables), or ``{}`` when there is none.
+    frame_interval : float
+        Time between frames, in tau_d.
+    trajectory, topology : Path or None
+        The files read.
+    run_file : Path or None
+        The ``run.toml`` read, if any.
+    directory : Path or None
+        Where results are written by default (the run directory, or the DCD's folder).
+    notes : list of str
+        Things noticed while loading (a truncated last frame, a missing bond, ...).
+    """
+
+    times: np.ndarray
+    positions: np.ndarray
+    bonds: np.ndarray
+    config: dict[str, Any] = field(default_factory=dict)
+    frame_interval: float = 1.0
+    trajectory: Path | None = None
+    topology: Path | None = None
+    run_file: Path | None = None
+    directory: Path | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames."""
+        return int(self.positions.shape[0])
+
+    @property
+    def n_beads(self) -> int:
+        """Number of beads N."""
+        return int(self.positions.shape[1])
+
+    def get(self, dotted: str, default: Any = None) -> Any:
+        """A run-file value by dotted key (``"knot.p"``), or ``default`` when absent."""
+        return config_value(self.config, dotted, default)
+
+    @classmethod
+    def from_arrays(
+        cls, positions, frame_interval: float, config: dict | None = None, bonds=None
+    ) -> RunData:
+        """Wrap in-memory arrays (positions in d, frames ``frame_interval`` tau_d apart)."""
+        x = np.array(positions, dtype=np.float64)
+        if x.ndim != 3 or x.shape[2] != 3:
+            raise ValueError(f"positions has shape {x.shape}: expected (n_frames, n_beads, 3) in d")
+        n = x.shape[1]
+        if bonds is None:
+            bonds = np.c_[np.arange(n), (np.arange(n) + 1) % n]
+        times = np.arange(x.shape[0]) * float(frame_interval)
+        return cls(
+            times, x, np.asarray(bonds, dtype=int), dict(config or {}), float(frame_interval)
+        )
+
+
+def config_value(config: dict, dotted: str, default: Any = None) -> Any:
+    """Look up ``"table.key"`` in a nested run-file mapping; ``default`` when absent."""
+    node: Any = config
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return default
+        node = node[part]
+    return node
+
+
+@contextlib.contextmanager
+def _captured_c_stdout(sink: list[str]):
+    """Collect what C code prints to descriptor 1 (mdtraj's DCD plugin) into ``sink``."""
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError):  # no usable descriptor 1: nothing to capture
+        yield
+        return
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 1)
+        try:
+            yield
+        finally:
+            with contextlib.suppress(OSError, ValueError):
+                sys.stdout.flush()
+            os.dup2(saved, 1)
+            os.close(saved)
+            tmp.seek(0)
+            sink.append(tmp.read().decode("utf-8", "replace"))
+
+
+def _read_dcd(path: Path) -> tuple[np.ndarray, list[str]]:
+    """Read a DCD's coordinates (Angstrom, float32) and the reader's complaints."""
+    from mdtraj.formats import DCDTrajectoryFile
+
+    messages: list[str] = []
+    notes: list[str] = []
+    try:
+        with _captured_c_stdout(messages), DCDTrajectoryFile(str(path)) as fh:
+            xyz, _, _ = fh.read()
+    except OSError as exc:
+        raise TrajectoryFileError(
+            f"{path}: cannot be read as a DCD trajectory ({exc}); the file is empty, "
+            "truncated inside its header or not a DCD: re-run or give the right file"
+        ) from None
+    text = " ".join(messages)
+    claimed = re.search(r"claims\s+(\d+)\s+frames.*?actually\s+(\d+)\s+frames", text, re.S)
+    if claimed:
+        notes.append(
+            f"{path.name}: the header claims {claimed.group(1)} frames but only "
+            f"{claimed.group(2)} are complete (the run was probably interrupted); "
+            "the partial frame was dropped"
+        )
+    return np.asarray(xyz), notes
+
+
+def _find_one(directory: Path, pattern: str, preferred: str) -> Path | None:
+    if (directory / preferred).is_file():
+        return directory / preferred
+    found = sorted(directory.glob(pattern))
+    return found[0] if len(found) == 1 else None
+
+
+def _locate(path: Path, topology) -> tuple[Path, Path, Path | None, Path]:
+    """Resolve (trajectory, topology, run file or None, output directory) from a path."""
+    if not path.exists():
+        raise TrajectoryFileError(
+            f"{path}: no such run directory or trajectory file; give a run directory "
+            f"(with {TRAJECTORY_NAME}, {TOPOLOGY_NAME}, {RUN_FILE_NAME}) or a DCD file"
+        )
+    if path.is_dir():
+        traj = _find_one(path, "*.dcd", TRAJECTORY_NAME)
+        if traj is None:
+            raise TrajectoryFileError(
+                f"{path}: no {TRAJECTORY_NAME} in this directory (and not exactly one "
+                "*.dcd); is it a run directory? give the DCD file itself"
+            )
+        directory = path
+    else:
+        if path.suffix.lower() != ".dcd":
+            raise TrajectoryFileError(
+                f"{path}: expected a run directory or a .dcd trajectory, got a "
+                f"'{path.suffix or 'suffix-less'}' file"
+            )
+        traj = path
+        directory = path.parent
+    if topology is not None:
+        top = Path(topology)
+        if not top.is_file():
+            raise TrajectoryFileError(f"--topology {top}: no such file; give the run's PDB")
+    else:
+        top = None
+        for candidate in (traj.with_suffix(".pdb"), directory / TOPOLOGY_NAME):
+            if candidate.is_file():
+                top = candidate
+                break
+        if top is None:
+            top = _find_one(directory, "*.pdb", TOPOLOGY_NAME)
+        if top is None:
+            raise TrajectoryFileError(
+                f"{traj}: no topology found (looked for {traj.with_suffix('.pdb').name} and "
+                f"{TOPOLOGY_NAME} beside it); give one with --topology PDB"
+            )
+    run_file = directory / RUN_FILE_NAME
+    return traj, top, (run_file if run_file.is_file() else None), directory
+
+
+def _check_interval(value, what: str) -> float:
+    try:
+        dt = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what} = {value!r}: expected a positive number of tau_d") from None
+    if not math.isfinite(dt) or dt <= 0:
+        raise ConfigError(f"{what} = {value!r}: expected a positive number of tau_d")
+    return dt
+
+
+def _ring_notes(bonds: np.ndarray, n: int, top: Path) -> list[str]:
+    pairs = {tuple(sorted(map(int, b))) for b in bonds}
+    ring = {tuple(sorted((i, (i + 1) % n))) for i in range(n)}
+    missing = ring - pairs
+    if not pairs:
+        return [
+            f"{top.name} has no CONECT records: the chain is taken as the closed ring "
+            "0-1-...-(N-1)-0"
+        ]
+    if missing:
+        example = sorted(missing)[0]
+        return [
+            f"{top.name} lacks {len(missing)} of the ring bonds i-(i+1) (e.g. "
+            f"{example[0]}-{example[1]}): writhe and knot type assume bead order is "
+            "chain order"
+        ]
+    return []
+
+
+def load_run(path, frame_interval: float | None = None, topology=None) -> RunData:
+    """Load a run directory or a DCD/PDB pair, in model units.
+
+    Parameters
+    ----------
+    path : str or Path
+        A run directory (``trajectory.dcd``, ``topology.pdb``, ``run.toml``) or a DCD file.
+        For a DCD file the topology is ``--topology``, else a PDB with the same stem, else
+        ``topology.pdb`` beside it; a ``run.toml`` beside it is read if present.
+    frame_interval : float, optional
+        Time between frames in tau_d. Required when there is no ``run.toml``; when both are
+        given this value wins (a warning is logged if they differ).
+    topology : str or Path, optional
+        A PDB topology to use instead of the one found beside the trajectory.
+
+    Returns
+    -------
+    RunData
+        ``times`` (n_frames,) in tau_d and ``positions`` (n_frames, n_beads, 3) in d.
+
+    Raises
+    ------
+    TrajectoryFileError
+        A file is missing, unreadable, truncated to nothing, or the DCD and PDB disagree on
+        the number of beads (or disagree with ``knot.beads`` in ``run.toml``).
+    ConfigError
+        ``run.toml`` is not valid TOML, or no frame interval is known.
+    """
+    import mdtraj
+
+    traj_path, top_path, run_file, directory = _locate(Path(path), topology)
+    config: dict[str, Any] = read_toml(run_file) if run_file is not None else {}
+    notes: list[str] = []
+
+    from_file = config_value(config, "output.frame_interval")
+    if frame_interval is not None:
+        dt = _check_interval(frame_interval, "--frame-interval")
+        if from_file is not None and not math.isclose(float(from_file), dt, rel_tol=1e-9):
+            logger.warning("frame interval %g given; %s says %s", dt, run_file, from_file)
+            notes.append(f"frame interval {dt:g} tau_d given; {RUN_FILE_NAME} says {from_file}")
+    elif from_file is not None:
+        dt = _check_interval(from_file, f"{run_file}: output.frame_interval")
+    else:
+        where = (
+            f"{run_file} has no output.frame_interval"
+            if run_file
+            else (f"no {RUN_FILE_NAME} beside {traj_path}")
+        )
+        raise ConfigError(
+            f"{where}: give the time between frames with --frame-interval T (in tau_d)"
+        )
+
+    try:
+        top = mdtraj.load_topology(str(top_path))
+    except Exception as exc:  # mdtraj raises many kinds on a bad PDB
+        raise TrajectoryFileError(
+            f"{top_path}: cannot be read as a PDB topology ({exc}); give the run's PDB"
+        ) from None
+    if top.n_atoms == 0:
+        raise TrajectoryFileError(f"{top_path}: the topology has no atoms; give the run's PDB")
+
+    xyz, dcd_notes = _read_dcd(traj_path)
+    notes += dcd_notes
+    if xyz.ndim != 3 or xyz.shape[0] == 0:
+        raise TrajectoryFileError(
+            f"{traj_path}: the trajectory holds no complete frame; the run wrote nothing "
+            "or the file was cut short"
+        )
+    n_frames, n_beads = xyz.shape[:2]
+    if n_beads != top.n_atoms:
+        raise TrajectoryFileError(
+            f"{traj_path} has {n_beads} beads per frame but {top_path} has {top.n_atoms}: "
+            "they come from different runs; give the matching --topology"
+        )
+    beads = config_value(config, "knot.beads")
+    if beads is not None and int(beads) != n_beads:
+        raise TrajectoryFileError(
+            f"{traj_path} has {n_beads} beads per frame but {run_file} says knot.beads = "
+            f"{beads}: the files come from different runs"
+        )
+
+    positions = angstrom_to_d(xyz.astype(np.float64))
+    finite = np.isfinite(positions).all(axis=(1, 2))
+    if not finite.all():
+        first_bad = int(np.argmin(finite))
+        if first_bad == 0:
+            raise TrajectoryFileError(
+                f"{traj_path}: frame 0 has non-finite coordinates; the file is corrupt"
+            )
+        notes.append(
+            f"{traj_path.name}: frame {first_bad} and later dropped (non-finite coordinates)"
+        )
+        positions = positions[:first_bad]
+
+    bonds = np.array([[b[0].index, b[1].index] for b in top.bonds], dtype=int).reshape(-1, 2)
+    notes += _ring_notes(bonds, n_beads, top_path)
+    if bonds.size == 0:
+        bonds = np.c_[np.arange(n_beads), (np.arange(n_beads) + 1) % n_beads]
+
+    duration = config_value(config, "run.duration")
+    if duration is not None:
+        expected = int(round(float(duration) / dt)) + 1
+        if positions.shape[0] < expected:
+            notes.append(
+                f"{positions.shape[0]} of the {expected} frames run.duration = {duration} "
+                "implies: the run stopped early"
+            )
+    times = np.arange(positions.shape[0]) * dt
+    for note in notes:
+        logger.info(note)
+    return RunData(
+        times=times,
+        positions=positions,
+        bonds=bonds,
+        config=config,
+        frame_interval=dt,
+        trajectory=traj_path,
+        topology=top_path,
+        run_file=run_file,
+        directory=directory,
+        notes=notes,
+    )

@@ -1,0 +1,428 @@
+"""Plots of an analysis: time series, spectra, the scaled-coordinate collapse, snapshots.
+
+Every function draws into ``ax`` (a new pyplot figure when None) and returns the Axes.
+:func:`save_plots` writes the PNG files without touching pyplot (Agg canvas), so it works
+without a display and leaves an interactive session's figures alone.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from knotmm.analysis.fit import scaled_coordinates
+from knotmm.analysis.result import AnalysisResult
+
+__all__ = [
+    "plot_com_height",
+    "plot_bead_coordinate",
+    "plot_time_series",
+    "plot_spectrum",
+    "plot_collapse",
+    "plot_snapshot",
+    "save_plots",
+    "PLOT_FILES",
+]
+
+#: File names written by :func:`save_plots`.
+PLOT_FILES = {
+    "timeseries": "analysis_timeseries.png",
+    "spectrum": "analysis_spectrum.png",
+    "collapse": "analysis_collapse.png",
+    "snapshot": "analysis_snapshot.png",
+}
+
+_COORD_STYLE = {  # the study's figure: squares, circles, triangles
+    "rho": {"marker": "s", "color": "tab:blue", "label": r"$(\rho-\rho_0)/C$"},
+    "alpha": {
+        "marker": "o",
+        "color": "tab:red",
+        "label": r"$\frac{q\rho_0}{p}(\alpha-2\pi t/\tau_{rot})/C$",
+    },
+    "z": {"marker": "^", "color": "tab:green", "label": r"$\frac{q}{\sqrt{p^2+q^2}}(z-Vt)/C$"},
+}
+
+
+def _new_axes(projection=None):
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure()
+    return fig.add_subplot(projection=projection)
+
+
+def _shade_window(ax, result: AnalysisResult, labels: bool = False) -> None:
+    """Shade the window; mark the radius collapse (red dashes) and knot-type change (purple)."""
+    win = result.window
+    ax.axvspan(win.t0, win.t1, color="0.9", zorder=0, lw=0)
+    if win.collapse_time is not None:
+        ax.axvline(
+            win.collapse_time,
+            color="tab:red",
+            ls="--",
+            lw=1,
+            label="radius collapse" if labels else None,
+        )
+    kt = result.knots
+    if kt.changed_at is not None:
+        text = f"knot {kt.initial} changes" if labels else None
+        ax.axvline(kt.changed_at, color="tab:purple", ls=":", lw=1.5, label=text)
+
+
+def _default_beads(n: int, count: int = 3) -> list[int]:
+    return [int(round(k * n / count)) % n for k in range(count)]
+
+
+def plot_com_height(result: AnalysisResult, ax=None):
+    """Centre-of-mass height against time, with the fitted fall over the window.
+
+    Parameters
+    ----------
+    result : AnalysisResult
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    matplotlib Axes
+    """
+    ax = ax or _new_axes()
+    t, com = result.data.times, result.coords.com
+    _shade_window(ax, result, labels=True)
+    ax.plot(t, com[:, 2], color="k", lw=1.2, label="centre of mass")
+    win = result.window
+    tw = t[win.frames]
+    zw = com[win.frames, 2]
+    line = zw.mean() - result.sedimentation_velocity * (tw - tw.mean())
+    ax.plot(
+        tw,
+        line,
+        color="tab:orange",
+        ls="--",
+        lw=1,
+        label=f"V = {result.sedimentation_velocity:.4g} d/$\\tau_d$",
+    )
+    ax.set_ylabel(r"$z_{cm}$ [d]")
+    ax.legend(loc="upper right", fontsize="small", frameon=False)
+    return ax
+
+
+def plot_bead_coordinate(result: AnalysisResult, which: str = "rho", beads=None, ax=None):
+    """One cylindrical coordinate of a few beads against time.
+
+    Parameters
+    ----------
+    result : AnalysisResult
+    which : {"rho", "alpha", "z"}
+        ``rho`` (d, with the mean over beads in black), ``alpha`` (rad, unwrapped) or
+        ``z`` (d, above the centre of mass).
+    beads : sequence of int, optional
+        Default: three beads evenly spaced along the chain.
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    matplotlib Axes
+    """
+    if which not in ("rho", "alpha", "z"):
+        raise ValueError(f"which={which!r}: expected 'rho', 'alpha' or 'z'")
+    ax = ax or _new_axes()
+    t = result.data.times
+    values = getattr(result.coords, which)
+    beads = _default_beads(values.shape[1]) if beads is None else list(beads)
+    _shade_window(ax, result)
+    for b in beads:
+        ax.plot(t, values[:, b], lw=0.9, label=f"bead {b}")
+    if which == "rho":
+        ax.plot(t, values.mean(axis=1), color="k", lw=1.2, label="mean")
+        ax.axhline(
+            result.major_radius_geometric, color="0.4", ls=":", lw=1, label=r"$N l_0/(2\pi p)$"
+        )
+    labels = {"rho": r"$\rho$ [d]", "alpha": r"$\alpha$ [rad]", "z": r"$z - z_{cm}$ [d]"}
+    ax.set_ylabel(labels[which])
+    ax.legend(loc="upper right", fontsize="x-small", frameon=False, ncol=len(beads) + 2)
+    return ax
+
+
+def plot_time_series(result: AnalysisResult, axes=None):
+    """Four stacked panels: COM height, bead rho, alpha and z against time.
+
+    Parameters
+    ----------
+    result : AnalysisResult
+    axes : sequence of 4 Axes, optional
+        Default: a new pyplot figure.
+
+    Returns
+    -------
+    ndarray of 4 Axes
+    """
+    if axes is None:
+        import matplotlib.pyplot as plt
+
+        _, axes = plt.subplots(4, 1, sharex=True, figsize=(8, 9))
+    axes = np.asarray(axes).ravel()
+    plot_com_height(result, ax=axes[0])
+    for ax, which in zip(axes[1:], ("rho", "alpha", "z"), strict=True):
+        plot_bead_coordinate(result, which, ax=ax)
+    axes[-1].set_xlabel(r"t [$\tau_d$]")
+    win = result.window
+    axes[0].set_title(
+        f"steady window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded); end: {win.end_reason}",
+        fontsize="medium",
+    )
+    return axes
+
+
+def plot_spectrum(result: AnalysisResult, ax=None):
+    """Swirl and rotation power spectra with their peaks marked.
+
+    Parameters
+    ----------
+    result : AnalysisResult
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    matplotlib Axes
+        Power (normalised, log scale) against signed frequency in 1/tau_d.
+    """
+    ax = ax or _new_axes()
+    specs = (
+        (
+            result.swirl_spectrum,
+            "tab:blue",
+            r"swirl: $(z-\bar z) + i(\rho-\bar\rho)$",
+            r"\tau_{swirl}",
+        ),
+        (result.rotation_spectrum, "tab:red", r"rotation: $e^{i\alpha}$", r"\tau_{rot}"),
+    )
+    f_sw = abs(result.swirl_spectrum.peak.frequency)
+    f_rot = abs(result.rotation_spectrum.peak.frequency)
+    f_max = min(max(3.0 * f_sw, 3.0 * f_rot), 0.5 / result.data.frame_interval)
+    for spec, color, label, tau in specs:
+        keep = np.abs(spec.frequencies) <= f_max
+        ax.semilogy(spec.frequencies[keep], spec.power[keep], color=color, lw=1, label=label)
+        peak = spec.peak
+        ax.axvline(peak.frequency, color=color, ls="--", lw=0.8)
+        ax.annotate(
+            f"${tau}$ = {peak.period:.4g} $\\pm$ {peak.period_uncertainty:.2g}",
+            xy=(peak.frequency, 1.0),
+            xytext=(4, -12 if spec.name == "swirl" else -26),
+            textcoords="offset points",
+            color=color,
+            fontsize="small",
+        )
+    ax.set_ylim(1e-6, 3.0)
+    ax.set_xlim(-f_max, f_max)
+    ax.set_xlabel(r"frequency [1/$\tau_d$]  (rotation > 0: counterclockwise from above)")
+    ax.set_ylabel("power (normalised)")
+    ax.legend(loc="lower left", fontsize="small", frameon=False)
+    return ax
+
+
+def plot_collapse(
+    result: AnalysisResult, ax=None, beads=None, periods: float = 3.0, max_markers: int = 400
+):
+    """The scaled coordinates of several beads on the vortex-knot curves.
+
+    Squares: ``(rho - rho0)/C``; circles: ``(q rho0/p)(alpha - 2 pi t/tau_rot)/C``;
+    triangles: ``q/sqrt(p^2+q^2)(z - Vt)/C``, against the swirl angle in turns
+    ``(t - t0)/tau_swirl + phi_i/(2 pi)``. Lines: ``sin`` and ``cos`` predicted by the
+    formula.
+
+    Parameters
+    ----------
+    result : AnalysisResult
+        Must hold a vortex-knot fit.
+    ax : matplotlib Axes, optional
+    beads : sequence of int, optional
+        Beads shown; default six evenly spaced along the chain.
+    periods : float
+        Swirl periods shown from the window start.
+    max_markers : int
+        Markers per coordinate (frames are thinned evenly).
+
+    Returns
+    -------
+    matplotlib Axes
+    """
+    ax = ax or _new_axes()
+    fit = result.fit
+    if fit is None:
+        ax.text(0.5, 0.5, "no vortex-knot fit", ha="center", va="center", transform=ax.transAxes)
+        return ax
+    win = result.window
+    c = result.coords
+    sel = win.frames
+    sc = scaled_coordinates(
+        fit, result.data.times[sel], c.rho[sel], c.alpha[sel], result.data.positions[sel, :, 2]
+    )
+    n = sc.cycle.shape[1]
+    beads = _default_beads(n, 6) if beads is None else list(beads)
+    start = np.floor(sc.cycle[0, beads].min())
+    x = sc.cycle[:, beads] - start
+    shown = x[:, 0] <= periods + 1
+    rows = np.flatnonzero(shown)
+    per_frame = len(beads)
+    rows = rows[:: max(1, int(np.ceil(len(rows) * per_frame / max_markers)))]
+    for name in ("rho", "alpha", "z"):
+        style = _COORD_STYLE[name]
+        y = getattr(sc, name)[:, beads]
+        ax.plot(
+            x[rows].ravel(),
+            y[rows].ravel(),
+            ls="none",
+            marker=style["marker"],
+            ms=4,
+            mfc="none",
+            mec=style["color"],
+            mew=0.8,
+            label=style["label"],
+        )
+    grid = np.linspace(0, max(1.0, x[rows].max()), 600)
+    ax.plot(grid, np.sin(2 * np.pi * grid), color=_COORD_STYLE["rho"]["color"], lw=1.2)
+    ax.plot(
+        grid,
+        np.cos(2 * np.pi * grid),
+        color="0.2",
+        lw=1.2,
+        label=r"$\sin$, $\cos(2\pi t/\tau_{swirl})$",
+    )
+    q_text = f"{fit.q}" if result.q is not None else f"{fit.q} (detected)"
+    ax.set_title(
+        f"T({fit.p},{q_text}): $\\rho_0$ = {fit.rho0:.3g} d, C = {fit.swirl_amplitude:.3g} d, "
+        f"$R^2$ = {fit.r2['total']:.3f}",
+        fontsize="medium",
+    )
+    ax.set_xlabel(r"$(t - t_0)/\tau_{swirl} + \phi_i/2\pi$")
+    ax.set_ylabel("scaled coordinate")
+    ax.set_ylim(-1.8, 1.8)
+    ax.legend(loc="upper right", fontsize="x-small", frameon=False, ncol=2)
+    return ax
+
+
+def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = "side", ax=None):
+    """The chain at one frame, in the centre-of-mass frame: side, top or 3D view.
+
+    In the side and top views (orthographic projections on 2D axes) nearer strands are
+    drawn over farther ones, so crossings read correctly; beads are coloured by index.
+
+    Parameters
+    ----------
+    result : AnalysisResult
+    frame : int, optional
+        Default: the middle of the window.
+    view : {"side", "top", "3d"}
+        ``side``: x-z plane seen from -y (gravity points down the page); ``top``: x-y plane
+        seen from above (counterclockwise on the page is counterclockwise seen from above);
+        ``3d``: a perspective view (``ax`` must then be a 3D Axes).
+    ax : matplotlib Axes, optional
+
+    Returns
+    -------
+    matplotlib Axes
+    """
+    if view not in ("side", "top", "3d"):
+        raise ValueError(f"view={view!r}: expected 'side', 'top' or '3d'")
+    ax = ax or _new_axes("3d" if view == "3d" else None)
+    win = result.window
+    frame = (win.start + win.stop) // 2 if frame is None else int(frame)
+    x = result.data.positions[frame]
+    x = x - x.mean(axis=0)
+    n = len(x)
+    colors = np.linspace(0.0, 1.0, n, endpoint=False)
+    t = result.data.times[frame]
+    if view == "3d":
+        ring = np.vstack([x, x[:1]])
+        ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color="0.3", lw=1)
+        ax.scatter(*x.T, c=colors, cmap="viridis", s=18, depthshade=True)
+        half = float(np.abs(x).max()) * 1.05
+        for setter in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
+            setter(-half, half)
+        ax.set_box_aspect((1, 1, 1))
+        ax.view_init(elev=25, azim=-60)
+        ax.set_xlabel("x [d]")
+        ax.set_ylabel("y [d]")
+        ax.set_title(f"t = {t:g} $\\tau_d$ (z up, in d)", fontsize="medium")
+        return ax
+    import matplotlib
+
+    cmap = matplotlib.colormaps["viridis"]
+    horizontal, vertical, depth = (x[:, 0], x[:, 2], -x[:, 1]) if view == "side" else x.T
+    nxt = (np.arange(n) + 1) % n
+    prev = (np.arange(n) - 1) % n
+    # painter's order: segments by mean depth, each bead just above its two segments
+    seg_z = 2.0 + 2.0 * np.argsort(np.argsort(0.5 * (depth + depth[nxt]))) / n
+    bead_z = np.maximum(seg_z, seg_z[prev]) + 0.002
+    for i in range(n):
+        xs, ys = horizontal[[i, nxt[i]]], vertical[[i, nxt[i]]]
+        ax.plot(xs, ys, color="white", lw=4.0, solid_capstyle="butt", zorder=seg_z[i])
+        ax.plot(xs, ys, color="0.25", lw=1.4, solid_capstyle="round", zorder=seg_z[i] + 0.001)
+        ax.plot(
+            horizontal[i],
+            vertical[i],
+            "o",
+            ms=4.5,
+            mec="none",
+            color=cmap(colors[i]),
+            zorder=bead_z[i],
+        )
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [d]")
+    if view == "side":
+        ax.set_ylabel("z [d]")
+        ax.annotate(
+            "",
+            xy=(0.04, 0.55),
+            xytext=(0.04, 0.95),
+            xycoords="axes fraction",
+            arrowprops={"arrowstyle": "->", "color": "tab:red", "lw": 1.5},
+        )
+        ax.text(0.07, 0.85, "g", color="tab:red", transform=ax.transAxes)
+        ax.set_title(f"side view, t = {t:g} $\\tau_d$", fontsize="medium")
+        pad = max(1.0, 0.6 * float(np.ptp(vertical)))
+        ax.set_ylim(vertical.min() - pad, vertical.max() + pad)
+    else:
+        ax.set_ylabel("y [d]")
+        sense = f", rotating {result.rotation_sense}" if result.rotation_sense else ""
+        ax.set_title(f"seen from above{sense}", fontsize="medium")
+    return ax
+
+
+def save_plots(result: AnalysisResult, directory, dpi: int = 150) -> list[Path]:
+    """Write the four PNG files of :data:`PLOT_FILES` into ``directory``.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    from matplotlib.figure import Figure
+
+    out = Path(directory)
+    written = []
+
+    fig = Figure(figsize=(8, 9), layout="constrained")
+    plot_time_series(result, axes=fig.subplots(4, 1, sharex=True))
+    written.append(_save(fig, out / PLOT_FILES["timeseries"], dpi))
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    plot_spectrum(result, ax=fig.add_subplot())
+    written.append(_save(fig, out / PLOT_FILES["spectrum"], dpi))
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    plot_collapse(result, ax=fig.add_subplot())
+    written.append(_save(fig, out / PLOT_FILES["collapse"], dpi))
+
+    fig = Figure(figsize=(13, 4.6), layout="constrained")
+    grid = fig.add_gridspec(1, 3, width_ratios=(1.0, 1.3, 1.0))
+    plot_snapshot(result, view="3d", ax=fig.add_subplot(grid[0], projection="3d"))
+    plot_snapshot(result, view="side", ax=fig.add_subplot(grid[1]))
+    plot_snapshot(result, view="top", ax=fig.add_subplot(grid[2]))
+    written.append(_save(fig, out / PLOT_FILES["snapshot"], dpi))
+    return written
+
+
+def _save(fig, path: Path, dpi: int) -> Path:
+    fig.savefig(path, dpi=dpi)
+    return path

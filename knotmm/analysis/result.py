@@ -1,0 +1,297 @@
+"""The analysis result: every reported quantity, its JSON form and a short table."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from knotmm.analysis.fit import VortexFit
+from knotmm.analysis.geometry import Cylindrical
+from knotmm.analysis.io import RunData
+from knotmm.analysis.spectra import Spectrum
+from knotmm.analysis.topology import KnotTypes
+from knotmm.analysis.window import Window
+
+__all__ = ["AnalysisResult", "format_table"]
+
+
+def _clean(value: Any) -> Any:
+    """JSON-safe copy: numpy scalars to Python, non-finite floats to None."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _clean(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def _ratio(num: float, den: float, num_err: float, den_err: float) -> tuple[float, float]:
+    if not (den and math.isfinite(den)):
+        return float("nan"), float("nan")
+    value = num / den
+    rel = math.hypot(num_err / num if num else 0.0, den_err / den)
+    return value, abs(value) * rel
+
+
+@dataclass
+class AnalysisResult:
+    """Everything ``knotmm analyze`` measures on one trajectory, in model units.
+
+    Lengths are in d, times in tau_d, speeds in d/tau_d. ``to_dict()`` is exactly the content
+    of ``analysis.json``. The array fields (``data``, ``coords``, the spectra, the fit's
+    per-bead phases) are kept for plotting and are not part of the JSON.
+
+    Attributes
+    ----------
+    sedimentation_velocity, sedimentation_velocity_uncertainty : float
+        V, the falling speed of the centre of mass over the window (linear fit of its
+        height), positive when falling, and the fit's standard error.
+    major_radius, major_radius_std : float
+        rho0, the mean bead distance from the vertical axis through the centre of mass over
+        the window, and the standard deviation of its per-frame value.
+    major_radius_geometric : float
+        ``N l0 / (2 pi p)``.
+    swirl_amplitude : float
+        C, from the vortex-knot fit.
+    tau_swirl, tau_rot : float
+        Swirl and rotation periods from the spectra (positive), with ``*_uncertainty``.
+    rotation_frequency : float
+        Signed rotation frequency, in 1/tau_d (positive: counterclockwise seen from above).
+    window : Window
+    swirl_spectrum, rotation_spectrum : Spectrum
+    fit : VortexFit or None
+    knots : KnotTypes
+    """
+
+    sedimentation_velocity: float
+    sedimentation_velocity_uncertainty: float
+    major_radius: float
+    major_radius_std: float
+    major_radius_geometric: float
+    swirl_amplitude: float
+    tau_swirl: float
+    tau_swirl_uncertainty: float
+    tau_rot: float
+    tau_rot_uncertainty: float
+    rotation_frequency: float
+    rotation_sense: str | None
+    writhe: float
+    writhe_std: float
+    handedness: str | None
+    window: Window
+    p: int
+    q: int | None
+    p_detected: int | None
+    q_detected: int | None
+    p_source: str
+    q_source: str
+    bond_length: float
+    swirl_spectrum: Spectrum
+    rotation_spectrum: Spectrum
+    fit: VortexFit | None
+    knots: KnotTypes
+    notes: list[str] = field(default_factory=list)
+    plots: list[str] = field(default_factory=list)
+    data: RunData | None = field(default=None, repr=False)
+    coords: Cylindrical | None = field(default=None, repr=False)
+
+    # -- derived -------------------------------------------------------------------------
+    @property
+    def tau_sed(self) -> float:
+        """``2 rho0 / V``, in tau_d: the time to fall one structure diameter."""
+        return 2.0 * self.major_radius / self.sedimentation_velocity
+
+    @property
+    def tau_sed_uncertainty(self) -> float:
+        """Propagated from the uncertainties of rho0 (its std) and V, in tau_d."""
+        return _ratio(
+            2 * self.major_radius,
+            self.sedimentation_velocity,
+            2 * self.major_radius_std,
+            self.sedimentation_velocity_uncertainty,
+        )[1]
+
+    @property
+    def swirl_sense(self) -> str | None:
+        """How beads circle the cross-section: ``"outward at the top"`` or ``"inward at the top"``.
+
+        Read from the sign of the swirl line of ``(z - <z>) + i (rho - <rho>)``: positive
+        means a bead at the top of its cross-section moves away from the vertical axis.
+        """
+        f = self.swirl_spectrum.peak.frequency
+        if not np.isfinite(f) or f == 0:
+            return None
+        return "outward at the top" if f > 0 else "inward at the top"
+
+    def ratios(self) -> dict[str, float]:
+        """``tau_swirl / tau_sed`` and ``tau_rot / tau_sed`` with propagated uncertainties."""
+        t_sed, t_sed_err = self.tau_sed, self.tau_sed_uncertainty
+        sw, sw_err = _ratio(self.tau_swirl, t_sed, self.tau_swirl_uncertainty, t_sed_err)
+        rot, rot_err = _ratio(self.tau_rot, t_sed, self.tau_rot_uncertainty, t_sed_err)
+        return {
+            "tau_swirl_over_tau_sed": sw,
+            "tau_swirl_over_tau_sed_uncertainty": sw_err,
+            "tau_rot_over_tau_sed": rot,
+            "tau_rot_over_tau_sed_uncertainty": rot_err,
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON content (``analysis.json``): model units, non-finite values as null."""
+        fit = self.fit.to_dict() if self.fit is not None else None
+        quality = None
+        if self.fit is not None:
+            quality = {
+                "r2": self.fit.r2.get("total"),
+                "r2_rho": self.fit.r2.get("rho"),
+                "r2_alpha": self.fit.r2.get("alpha"),
+                "r2_z": self.fit.r2.get("z"),
+                "rms": self.fit.rms.get("total"),
+                "rms_over_amplitude": fit["rms_over_amplitude"],
+                "converged": self.fit.converged,
+            }
+        data = self.data
+        out: dict[str, Any] = {
+            "units": {"length": "d", "time": "tau_d", "velocity": "d/tau_d"},
+            "sedimentation_velocity": self.sedimentation_velocity,
+            "sedimentation_velocity_uncertainty": self.sedimentation_velocity_uncertainty,
+            "major_radius": self.major_radius,
+            "major_radius_std": self.major_radius_std,
+            "major_radius_geometric": self.major_radius_geometric,
+            "swirl_amplitude": self.swirl_amplitude,
+            "tau_sed": self.tau_sed,
+            "tau_sed_uncertainty": self.tau_sed_uncertainty,
+            "tau_swirl": self.tau_swirl,
+            "tau_swirl_uncertainty": self.tau_swirl_uncertainty,
+            "tau_rot": self.tau_rot,
+            "tau_rot_uncertainty": self.tau_rot_uncertainty,
+            **self.ratios(),
+            "rotation_sense": self.rotation_sense,
+            "rotation_frequency": self.rotation_frequency,
+            "swirl_sense": self.swirl_sense,
+            "writhe": self.writhe,
+            "writhe_std": self.writhe_std,
+            "handedness": self.handedness,
+            "knot_type_initial": self.knots.initial,
+            "knot_type_start": self.knots.start,
+            "knot_type_end": self.knots.end,
+            "knot_type_changed_at": self.knots.changed_at,
+            "window": [self.window.t0, self.window.t1],
+            "window_info": self.window.to_dict(),
+            "p": self.p,
+            "q": self.q,
+            "p_detected": self.p_detected,
+            "q_detected": self.q_detected,
+            "p_source": self.p_source,
+            "q_source": self.q_source,
+            "fit_quality": quality,
+            "fit": fit,
+            "spectra": {
+                "swirl": self.swirl_spectrum.peak.to_dict(),
+                "rotation": self.rotation_spectrum.peak.to_dict(),
+            },
+            "n_beads": data.n_beads if data is not None else None,
+            "n_frames": data.n_frames if data is not None else None,
+            "frame_interval": data.frame_interval if data is not None else None,
+            "bond_length": self.bond_length,
+            "source": {
+                "trajectory": _relative(data, "trajectory"),
+                "topology": _relative(data, "topology"),
+                "run_file": _relative(data, "run_file"),
+                "knotmm_version": _version(),
+            },
+            "plots": list(self.plots),
+            "notes": list(self.notes),
+        }
+        return _clean(out)
+
+
+def _relative(data: RunData | None, name: str) -> str | None:
+    """A source file's path relative to the run directory (absolute if outside it)."""
+    path = getattr(data, name, None) if data is not None else None
+    if path is None:
+        return None
+    path = Path(path).resolve()
+    if data.directory is not None:
+        with contextlib.suppress(ValueError):
+            return str(path.relative_to(Path(data.directory).resolve()))
+    return str(path)
+
+
+def _version() -> str:
+    from knotmm import __version__
+
+    return __version__
+
+
+def _fmt(value, err=None, digits: int = 4) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    if isinstance(value, str):
+        return value
+    text = f"{value:.{digits}g}"
+    if err is not None and isinstance(err, float) and math.isfinite(err):
+        text += f" +- {err:.2g}"
+    return text
+
+
+def format_table(result: AnalysisResult) -> str:
+    """A short plain-text table of the reported quantities."""
+    d = result.to_dict()
+    q = d["fit_quality"] or {}
+    knot = d["knot_type_start"]
+    if d["knot_type_end"] != d["knot_type_start"]:
+        knot = f"{d['knot_type_start']} -> {d['knot_type_end']}"
+    win = result.window
+    end = win.end_reason
+    if win.collapse_time is not None:
+        end += f"; torus radius collapsed at t = {win.collapse_time:g}"
+    rows = [
+        ("window [tau_d]", f"{win.t0:g} .. {win.t1:g}  ({win.n_frames} frames; end: {end})"),
+        ("knot", f"T({d['p']},{d['q'] if d['q'] is not None else '?'})  p from {d['p_source']}"),
+        ("V [d/tau_d]", _fmt(d["sedimentation_velocity"], d["sedimentation_velocity_uncertainty"])),
+        (
+            "rho0 [d]",
+            _fmt(d["major_radius"]) + f"   (N l0/(2 pi p) = {_fmt(d['major_radius_geometric'])})",
+        ),
+        ("C [d]", _fmt(d["swirl_amplitude"])),
+        ("tau_sed [tau_d]", _fmt(d["tau_sed"], d["tau_sed_uncertainty"])),
+        ("tau_swirl [tau_d]", _fmt(d["tau_swirl"], d["tau_swirl_uncertainty"])),
+        ("tau_rot [tau_d]", _fmt(d["tau_rot"], d["tau_rot_uncertainty"])),
+        (
+            "tau_swirl/tau_sed",
+            _fmt(d["tau_swirl_over_tau_sed"], d["tau_swirl_over_tau_sed_uncertainty"]),
+        ),
+        ("tau_rot/tau_sed", _fmt(d["tau_rot_over_tau_sed"], d["tau_rot_over_tau_sed_uncertainty"])),
+        ("rotation (from above)", _fmt(d["rotation_sense"])),
+        ("swirl", _fmt(d["swirl_sense"])),
+        ("writhe", f"{_fmt(d['writhe'])}  ({_fmt(d['handedness'])}-handed)"),
+        (
+            "knot type",
+            _fmt(knot)
+            + (
+                f"  (changed at t = {d['knot_type_changed_at']:g})"
+                if d["knot_type_changed_at"] is not None
+                else ""
+            ),
+        ),
+        (
+            "fit R^2 (rho, alpha, z)",
+            ", ".join(_fmt(q.get(k), digits=3) for k in ("r2_rho", "r2_alpha", "r2_z")),
+        ),
+    ]
+    width = max(len(k) for k, _ in rows)
+    lines = [f"{k:<{width}}  {v}" for k, v in rows]
+    lines += [f"note: {n}" for n in d["notes"]]
+    return "\n".join(lines)
