@@ -409,9 +409,12 @@ def parse_override(text: str) -> tuple[str, Any]:
     if not sep:
         raise ConfigError(f"--set {text!r}: expected table.key=value, e.g. run.duration=50")
     dotted = dotted.strip()
-    split_key(dotted)
+    table, name = split_key(dotted)
+    text = raw.strip()
     try:
-        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+        value = tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
-        value = raw.strip()
+        value = text
+    if SCHEMA[table][name].kind == "str" and not isinstance(value, str):
+        value = text  # e.g. knot.name=6_1, which TOML would read as the integer 61
     return dotted, value

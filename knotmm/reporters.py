@@ -194,10 +194,19 @@ class KnotTypeWatch(_TimeScheduled):
         reported.
     on_change : {"warn", "stop"}
     first_index : int
+    identify : callable, optional
+        ``positions -> name``; default: a :class:`knotmm.knot_worker.IsolatedKnotIdentifier`
+        (topoly in a worker process, so that a crash in it cannot end the run).
     """
 
-    def __init__(self, interval, expected=None, on_change="warn", first_index=0):
+    def __init__(self, interval, expected=None, on_change="warn", first_index=0,
+                 identify=None):
         super().__init__(interval, first_index)
+        if identify is None:
+            from knotmm.knot_worker import IsolatedKnotIdentifier
+
+            identify = IsolatedKnotIdentifier(chiral=True)
+        self._identify = identify
         self.current = expected
         self.on_change = on_change
         self.changes: list[tuple[float, str | None, str | None]] = []
@@ -205,12 +214,11 @@ class KnotTypeWatch(_TimeScheduled):
 
     def report(self, simulation, state) -> None:
         from knotmm.errors import KnotTypeChanged
-        from knotmm.knots import identify_knot
 
         self._advance()
-        found = identify_knot(simulation.positions, chiral=True)
+        found = self._identify(simulation.positions)
         self.checks += 1
-        if found is None:
+        if found is None or found == "unknown":
             return
         if self.current is None:
             self.current = found
@@ -228,3 +236,8 @@ class KnotTypeWatch(_TimeScheduled):
             import logging
 
             logging.getLogger(__name__).warning(message)
+
+    def close(self) -> None:
+        closer = getattr(self._identify, "close", None)
+        if closer is not None:
+            closer()

@@ -408,8 +408,9 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
         status, message = "interrupted", "interrupted by the user"
         raise
     finally:
-        for r in (dcd, obs, bar):
-            r.close()
+        for r in (dcd, obs, bar, watch):
+            if r is not None:
+                r.close()
         wall = time.perf_counter() - wall0
         velocity = (z0 - float(sim.positions[:, 2].mean())) / sim.time if sim.time > 0 else 0.0
         result = RunResult(

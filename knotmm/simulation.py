@@ -180,16 +180,18 @@ class Simulation:
         return np.linalg.norm(pos[self.bonds[:, 1]] - pos[self.bonds[:, 0]], axis=1)
 
     # -- state checks ---------------------------------------------------------------------
-    def _check_state(self, y: np.ndarray, initial: bool = False) -> None:
+    def _check_state(self, y: np.ndarray, initial: bool = False, dt: float = 0.0) -> None:
+        """Raise SimulationFault if ``y`` (the state ``dt`` after the current one) is bad."""
         where = "the starting positions" if initial else (
-            f"t = {self.time:.6g} tau_d (step {self.currentStep})"
+            f"t = {self.time + dt:.6g} tau_d (step {self.currentStep + 1}; the last good state, "
+            f"at t = {self.time:.6g} tau_d, is kept)"
         )
         if not np.all(np.isfinite(y)):
             bead = int(np.argwhere(~np.isfinite(y).all(axis=1))[0, 0])
             raise SimulationFault(
-                f"positions became non-finite at {where}: first bad bead {bead}; the last good "
-                f"state is kept. Hint: lower run.tolerance (adaptive) or run.timestep (fixed "
-                f"step), or use run.integrator = \"rkc2\""
+                f"positions became non-finite at {where}: first bad bead {bead}. Hint: lower "
+                f"run.tolerance (adaptive) or run.timestep (fixed step), or use an adaptive "
+                f"run.integrator (rk23, rkc2)"
             )
         lengths = self.bond_lengths(y)
         worst = int(np.argmax(lengths))
@@ -218,7 +220,7 @@ class Simulation:
                 f"Hint: the forces are too stiff here (beads pressed together?); the last good "
                 f"state is kept"
             ) from None
-        self._check_state(y_new)
+        self._check_state(y_new, dt=dt)
         self.positions = y_new
         self.time += dt
         self.currentStep += 1

@@ -128,3 +128,41 @@ def test_midpoint_repulsion_matches_a_naive_site_sum():
     expected = _naive_site_forces(y)
     assert np.abs(expected).max() > 10.0  # the crossing is really felt
     np.testing.assert_allclose(extra, expected, atol=1e-6)
+
+
+class _FakeSim:
+    def __init__(self):
+        self.positions = np.zeros((4, 3))
+        self.time = 0.0
+        self.currentStep = 0
+
+
+def test_knot_watch_records_and_stops_on_a_change():
+    from knotmm.errors import KnotTypeChanged
+    from knotmm.reporters import KnotTypeWatch
+
+    answers = iter(["+3_1", "unknown", "-3_1"])
+    watch = KnotTypeWatch(10.0, expected="+3_1", identify=lambda x: next(answers),
+                          first_index=1)
+    sim = _FakeSim()
+    for t in (10.0, 20.0, 30.0):
+        assert watch.next_report_time(sim) == t
+        sim.time = t
+        watch.report(sim, None)
+    assert watch.changes == [(30.0, "+3_1", "-3_1")]
+    assert watch.checks == 3
+
+    stop = KnotTypeWatch(10.0, expected="+3_1", on_change="stop", identify=lambda x: "0_1")
+    with pytest.raises(KnotTypeChanged, match="from \\+3_1 to 0_1"):
+        stop.report(sim, None)
+
+
+def test_isolated_identifier_names_a_trefoil_and_its_mirror():
+    from knotmm.knot_worker import IsolatedKnotIdentifier
+
+    identify = IsolatedKnotIdentifier(chiral=True)
+    try:
+        assert identify(torus_knot(2, 3, 60)) == "+3_1"
+        assert identify(torus_knot(2, 3, 60, mirror=True)) == "-3_1"
+    finally:
+        identify.close()
