@@ -125,7 +125,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
             choices=("rk23", "rkc2", "heun", "midpoint", "euler", "ito_heun", "euler_maruyama"),
         ),
         "timestep": Key(
-            "float", 0.01, "step in tau_d; the first step of an adaptive integrator",
+            "float", 0.01, "step in tau_d (fixed-step and Brownian integrators); the first "
+            "step of an adaptive one",
             0.0, None, True,
         ),
         "tolerance": Key(

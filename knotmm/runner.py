@@ -35,7 +35,6 @@ import numpy as np
 from knotmm import __version__
 from knotmm.config import RunConfig, read_toml
 from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault, TrajectoryFileError
-from knotmm.integrators import make_integrator
 from knotmm.reporters import DCDReporter, ObservablesReporter, ProgressReporter
 from knotmm.simulation import Simulation, select_platform
 from knotmm.system import ChainModel
@@ -198,14 +197,10 @@ def write_run_toml(directory: Path, cfg: RunConfig, facts: dict) -> None:
 
 
 def _make_simulation(cfg: RunConfig, positions) -> Simulation:
+    from knotmm.brownian import integrator_from_config
+
     model = ChainModel.from_config(cfg)
-    integrator = make_integrator(
-        cfg["run.integrator"],
-        cfg["run.timestep"],
-        cfg["run.tolerance"],
-        cfg["run.max_timestep"],
-        cfg["run.min_timestep"],
-    )
+    integrator = integrator_from_config(cfg)
     return Simulation(
         positions,
         model,
@@ -217,11 +212,10 @@ def _make_simulation(cfg: RunConfig, positions) -> Simulation:
 
 
 def _check_peclet(cfg: RunConfig) -> None:
-    if math.isfinite(cfg["run.peclet"]):
-        raise ConfigError(
-            f"run.peclet = {cfg['run.peclet']!r}: Brownian dynamics is not available in this "
-            f"version; remove the key (deterministic, Pe = inf)"
-        )
+    """Check that the integrator fits the Peclet number (before anything is written)."""
+    from knotmm.brownian import integrator_from_config
+
+    integrator_from_config(cfg)
 
 
 def run(

@@ -192,6 +192,11 @@ def analyze(
         kt = KnotTypes(None, None, None, notes=["knot identification skipped"])
     notes += kt.notes
 
+    # tilt of the torus axis against gravity and flips, over the whole trajectory
+    from knotmm.tilt import tilt_analysis
+
+    tilt = tilt_analysis(positions, times).to_dict() if len(times) >= 2 else None
+
     return AnalysisResult(
         sedimentation_velocity=velocity,
         sedimentation_velocity_uncertainty=velocity_err,
@@ -221,6 +226,7 @@ def analyze(
         fit=vfit,
         knots=kt,
         notes=notes,
+        tilt=tilt,
         data=data,
         coords=coords,
     )

@@ -103,6 +103,7 @@ class AnalysisResult:
     fit: VortexFit | None
     knots: KnotTypes
     notes: list[str] = field(default_factory=list)
+    tilt: dict | None = None
     plots: list[str] = field(default_factory=list)
     data: RunData | None = field(default=None, repr=False)
     coords: Cylindrical | None = field(default=None, repr=False)
@@ -212,6 +213,7 @@ class AnalysisResult:
                 "knotmm_version": _version(),
             },
             "plots": list(self.plots),
+            "tilt": self.tilt,
             "notes": list(self.notes),
         }
         return _clean(out)
@@ -291,6 +293,14 @@ def format_table(result: AnalysisResult) -> str:
             ", ".join(_fmt(q.get(k), digits=3) for k in ("r2_rho", "r2_alpha", "r2_z")),
         ),
     ]
+    tilt = d.get("tilt")
+    if tilt:
+        incl = tilt.get("inclination_median_deg")
+        rows.append((
+            "torus axis vs gravity",
+            f"median tilt {_fmt(incl)} deg, {tilt['flips']['count']} flips, toroidal "
+            f"{100 * tilt['fraction_toroidal']:.0f}% of frames",
+        ))
     width = max(len(k) for k, _ in rows)
     lines = [f"{k:<{width}}  {v}" for k, v in rows]
     lines += [f"note: {n}" for n in d["notes"]]
