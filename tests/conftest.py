@@ -1,0 +1,28 @@
+"""Shared fixtures of the engine tests (kept small: see reference_model.py for the physics)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+
+@pytest.fixture
+def rng():
+    """A fresh seeded generator per test (reproducible, independent of test order)."""
+    return np.random.default_rng(20181127)
+
+
+@pytest.fixture(scope="session")
+def trefoil40():
+    """The T(2,3) template with 40 beads, in d (centred, bonds 0.6 d)."""
+    from knotmm.templates import torus_knot
+
+    return torus_knot(2, 3, 40)
+
+
+@pytest.fixture(scope="session")
+def trefoil90():
+    """The T(2,3) template with 90 beads (the default run's start), in d."""
+    from knotmm.templates import torus_knot
+
+    return torus_knot(2, 3, 90)
