@@ -61,8 +61,9 @@ it is weak order 1 with a much smaller error constant on stiff modes (see
 Step size
 ---------
 The deterministic stability limit (``h rho <= 2``, ``rho`` the largest relaxation rate) is
-0.016-0.02 tau_d with the study's parameters (``rho`` near 120 / tau_d on a relaxed torus,
-from the bond modes), and noise adds a random displacement ``sqrt(2 kT h)`` per coordinate
+0.015-0.043 tau_d with the study's parameters (``rho`` about 46 / tau_d on a swirling torus,
+180 / tau_d in a compact coil; see :mod:`knotmm.integrators`), and noise adds a random
+displacement ``sqrt(2 kT h)`` per coordinate
 and step (0.1 d at ``Pe = 2``, ``h = 0.01``), which pushes beads into steric contacts that
 are stiffer still. Accuracy asks for less than stability: a harmonic mode of relaxation
 rate ``lambda`` has stationary variance ``2 / (2 - z)`` times the exact one with
@@ -570,8 +571,9 @@ class EulerMaruyama(StochasticIntegrator):
 
     One velocity and one noise sample per step. It converges to the Ito equation, which
     is the correct one with no drift term because ``div mu = 0`` for the RPY tensor (module
-    docstring). Stable for ``h rho <= 2`` (``rho`` the largest relaxation rate: h <= 0.016
-    tau_d with the study's parameters); the stationary variance of a harmonic mode of rate
+    docstring). Stable for ``h rho <= 2`` (``rho`` the largest relaxation rate: h <= 0.015
+    tau_d through compact coils with the study's parameters); the stationary variance of a
+    harmonic mode of rate
     ``lambda`` is ``2 / (2 - h lambda)`` times the exact one, so stiff modes need
     ``h lambda << 1`` (h <= 0.001 tau_d for the bonds of the study's chain).
     """

@@ -21,6 +21,29 @@ import numpy as np
 
 __all__ = ["IsolatedKnotIdentifier"]
 
+
+class _Done:
+    def __init__(self, value):
+        self._value = value
+
+    def done(self) -> bool:
+        return True
+
+    def result(self):
+        return self._value
+
+
+class _Pending:
+    def __init__(self, owner, future):
+        self._owner = owner
+        self._future = future
+
+    def done(self) -> bool:
+        return self._future.done()
+
+    def result(self):
+        return self._owner._collect(self._future)
+
 log = logging.getLogger(__name__)
 
 
@@ -69,11 +92,41 @@ class IsolatedKnotIdentifier:
         self.close()
         return None
 
+    def submit(self, positions):
+        """Start an identification and return a handle whose ``result()`` gives the name.
+
+        The worker runs beside the simulation (on another core), so a run does not wait for
+        topoly. In-process mode computes at once.
+        """
+        positions = np.array(positions, dtype=np.float64)
+        if not self._in_process:
+            try:
+                if self._pool is None:
+                    self._pool = ProcessPoolExecutor(
+                        max_workers=1, mp_context=multiprocessing.get_context("spawn")
+                    )
+                return _Pending(self, self._pool.submit(_identify, positions, self.chiral))
+            except (OSError, AssertionError, BrokenProcessPool) as exc:
+                log.info("knot checks run in-process (%s)", exc)
+                self._in_process = True
+        return _Done(_identify(positions, self.chiral))
+
     def close(self) -> None:
         """Stop the worker process (it is started again when needed)."""
         if self._pool is not None:
             self._pool.shutdown(wait=False, cancel_futures=True)
             self._pool = None
+
+    def _collect(self, future) -> str | None:
+        try:
+            return future.result(self.timeout)
+        except BrokenProcessPool:
+            log.warning("the knot-identification worker crashed; this check is skipped")
+        except FutureTimeout:
+            log.warning("knot identification took over %g s; this check is skipped",
+                        self.timeout)
+        self.close()
+        return None
 
     def __del__(self):  # pragma: no cover - best effort at interpreter exit
         try:

@@ -179,7 +179,10 @@ class KnotTypeWatch(_TimeScheduled):
     """Check the knot type every ``interval`` tau_d (topoly) and react to a change.
 
     A bead model can let one strand pass through another when the strands are pressed
-    together (model.md): this reporter notices it. Every change is recorded in
+    together (model.md): this reporter notices it. With the default identifier, topoly runs
+    in a worker process beside the simulation: a check is judged at a later report (or when
+    the run ends), so ``on_change="stop"`` stops the run one check interval after the frame
+    where the change was seen, and the message names that frame's time. Every change is recorded in
     :attr:`changes` as ``(time, old_type, new_type)``; with ``on_change="stop"`` the run stops
     with :class:`knotmm.errors.KnotTypeChanged`, otherwise a warning is logged.
 
@@ -207,16 +210,32 @@ class KnotTypeWatch(_TimeScheduled):
 
             identify = IsolatedKnotIdentifier(chiral=True)
         self._identify = identify
+        self._pending: list = []
         self.current = expected
         self.on_change = on_change
         self.changes: list[tuple[float, str | None, str | None]] = []
         self.checks = 0
 
     def report(self, simulation, state) -> None:
+        self._advance()
+        self.collect(wait=False)
+        submit = getattr(self._identify, "submit", None)
+        if submit is None:  # a plain callable: check now
+            self._judge(simulation.time, simulation.currentStep,
+                        self._identify(simulation.positions))
+        else:  # the worker identifies beside the run; judged at a later report
+            self._pending.append((simulation.time, simulation.currentStep,
+                                  submit(simulation.positions)))
+
+    def collect(self, wait: bool = True) -> None:
+        """Judge finished identifications in order (all of them with ``wait``)."""
+        while self._pending and (wait or self._pending[0][2].done()):
+            when, step, handle = self._pending.pop(0)
+            self._judge(when, step, handle.result())
+
+    def _judge(self, when: float, step: int, found: str | None) -> None:
         from knotmm.errors import KnotTypeChanged
 
-        self._advance()
-        found = self._identify(simulation.positions)
         self.checks += 1
         if found is None or found == "unknown":
             return
@@ -224,20 +243,27 @@ class KnotTypeWatch(_TimeScheduled):
             self.current = found
             return
         if found != self.current:
-            self.changes.append((simulation.time, self.current, found))
+            self.changes.append((when, self.current, found))
             message = (
-                f"the knot type changed from {self.current} to {found} at t = "
-                f"{simulation.time:.6g} tau_d (step {simulation.currentStep}): strands passed "
-                f"through each other"
+                f"the knot type changed from {self.current} to {found} by t = {when:.6g} tau_d "
+                f"(step {step}): strands passed through each other"
             )
             self.current = found
             if self.on_change == "stop":
+                self._pending.clear()
                 raise KnotTypeChanged(message + "; run.on_topology_change = \"stop\"")
             import logging
 
             logging.getLogger(__name__).warning(message)
 
     def close(self) -> None:
-        closer = getattr(self._identify, "close", None)
-        if closer is not None:
-            closer()
+        from knotmm.errors import KnotTypeChanged
+
+        try:
+            self.collect(wait=True)
+        except KnotTypeChanged:
+            pass  # recorded in self.changes; the run is ending anyway
+        finally:
+            closer = getattr(self._identify, "close", None)
+            if closer is not None:
+                closer()

@@ -394,6 +394,8 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
     try:
         if duration > sim.time:
             sim.run(duration - sim.time, write_at_start=not resuming)
+        if watch is not None:
+            watch.collect(wait=True)  # checks still running beside the simulation
     except SimulationFault as exc:
         status, message = "fault", str(exc)
         ckpt.save_now(sim)  # the last good state
