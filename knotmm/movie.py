@@ -1,0 +1,419 @@
+"""Movies of a run: a 3D view, a side view and a top view, following the centre of mass.
+
+Each frame is drawn with matplotlib's Agg canvas (no display needed) in three panels:
+
+* a 3D view (gravity points down the vertical axis),
+* a side view (x horizontal, z up),
+* a top view (seen from above, x to the right, y up),
+
+all centred on the chain's centre of mass, so the camera falls with the knot; the distance
+fallen and the time are written on the frame. Beads are drawn as discs of half a bead
+diameter (the model's beads overlap, l0 = 0.6 d: full-size discs would hide the strands), the
+ring as a line, and one *tracer* bead in a distinct colour with a short trail
+of its recent positions (relative to the centre of mass), which makes the swirl visible.
+
+The frames are encoded as MP4 (H.264) when the optional extra ``imageio-ffmpeg`` is
+installed, else as an animated GIF (Pillow, a matplotlib dependency).
+
+Examples
+--------
+>>> from knotmm.movie import make_movie
+>>> make_movie("runs/trefoil", fps=20)                           # doctest: +SKIP
+MovieResult(path=PosixPath('runs/trefoil/movie.mp4'), frames=401, ...)
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import logging
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from knotmm.errors import ConfigError
+
+__all__ = ["MovieResult", "make_movie", "render_frames", "mp4_available", "MAX_AUTO_FRAMES"]
+
+log = logging.getLogger(__name__)
+
+#: With ``stride=None`` the stride is chosen so that a movie has at most this many frames.
+MAX_AUTO_FRAMES = 600
+
+_BEAD = "#4a7fb5"
+_LINE = "#2b4a6b"
+_TRACER = "#d62728"
+
+
+def mp4_available() -> bool:
+    """Whether MP4 output is possible (the optional extra ``imageio-ffmpeg`` is installed)."""
+    return importlib.util.find_spec("imageio_ffmpeg") is not None
+
+
+@dataclass
+class MovieResult:
+    """A movie written by :func:`make_movie`.
+
+    Attributes
+    ----------
+    path : Path
+    frames : int
+        Frames in the movie.
+    fps : float
+        Frames per second.
+    format : {"mp4", "gif"}
+    stride : int
+        Trajectory frames per movie frame.
+    """
+
+    path: Path
+    frames: int
+    fps: float
+    format: str
+    stride: int
+
+    def summary(self) -> str:
+        """The one-line summary the CLI prints."""
+        seconds = self.frames / self.fps
+        return (
+            f"wrote {self.path} ({self.format.upper()}, {self.frames} frames, stride "
+            f"{self.stride}, {self.fps:g} fps, {seconds:.1f} s)"
+        )
+
+
+def _format_for(out: Path | None) -> str:
+    if out is None:
+        return "mp4" if mp4_available() else "gif"
+    suffix = out.suffix.lower()
+    if suffix == ".gif":
+        return "gif"
+    if suffix == ".mp4":
+        if not mp4_available():
+            raise ConfigError(
+                f"--out {out}: MP4 needs imageio-ffmpeg (pip install 'knotmm[movie]'); "
+                f"or write a GIF: --out {out.with_suffix('.gif')}"
+            )
+        return "mp4"
+    raise ConfigError(f"--out {out}: expected a file ending in .mp4 or .gif")
+
+
+class _Scene:
+    """The three panels of one figure and the artists updated frame by frame."""
+
+    def __init__(
+        self,
+        positions: np.ndarray,
+        com: np.ndarray,
+        tracer: int,
+        trail: int,
+        dpi: float,
+        title: str,
+    ):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        self.tracer = tracer
+        self.trail = trail
+        rel = positions - com[:, None, :]
+        half = float(np.max(np.abs(rel))) + 0.8  # every frame fits, plus a bead's margin
+        self.half = half
+        self.fig = Figure(figsize=(12.0, 4.6), dpi=dpi)
+        self.canvas = FigureCanvasAgg(self.fig)
+        self.fig.subplots_adjust(left=0.02, right=0.98, bottom=0.08, top=0.86, wspace=0.15)
+        ax3 = self.fig.add_subplot(1, 3, 1, projection="3d")
+        side = self.fig.add_subplot(1, 3, 2)
+        top = self.fig.add_subplot(1, 3, 3)
+        self.fig.suptitle(title, fontsize=11)
+        self.text = self.fig.text(0.5, 0.905, "", ha="center", fontsize=10)
+
+        for ax in (ax3,):
+            ax.set_xlim(-half, half)
+            ax.set_ylim(-half, half)
+            ax.set_zlim(-half, half)
+            ax.set_box_aspect((1, 1, 1))
+            ax.view_init(elev=22, azim=-60)
+            ax.set_xlabel("x [d]", fontsize=8, labelpad=-6)
+            ax.set_ylabel("y [d]", fontsize=8, labelpad=-6)
+            ax.set_zlabel("z [d]", fontsize=8, labelpad=-6)
+            ax.tick_params(labelsize=6, pad=-2)
+            ax.set_title("3D (gravity down)", fontsize=9)
+        for ax, name, labels in (
+            (side, "side view (x, z)", ("x [d]", "z [d]")),
+            (top, "top view (x, y), from above", ("x [d]", "y [d]")),
+        ):
+            ax.set_xlim(-half, half)
+            ax.set_ylim(-half, half)
+            ax.set_aspect("equal")
+            ax.set_title(name, fontsize=9)
+            ax.set_xlabel(labels[0], fontsize=8)
+            ax.set_ylabel(labels[1], fontsize=8)
+            ax.tick_params(labelsize=7)
+            ax.grid(True, alpha=0.25)
+        # gravity arrow in the side view
+        side.annotate(
+            "",
+            xy=(0.93, 0.08),
+            xytext=(0.93, 0.26),
+            xycoords="axes fraction",
+            arrowprops={"arrowstyle": "-|>", "color": "0.3", "lw": 1.5},
+        )
+        side.text(
+            0.9,
+            0.17,
+            "g",
+            transform=side.transAxes,
+            ha="right",
+            va="center",
+            color="0.3",
+            fontsize=10,
+            style="italic",
+        )
+        self.canvas.draw()
+        # marker size: one bead diameter in points, from the side panel's scale
+        bbox = side.get_window_extent()
+        points_per_d = bbox.width / (2 * half) * 72.0 / dpi
+        ms = max(2.0, 0.55 * points_per_d)  # half a diameter: the overlapping beads stay apart
+        ms3 = ms * 0.8
+
+        self.lines, self.beads, self.tracers, self.trails = [], [], [], []
+        self.ax3, self.side, self.top = ax3, side, top
+        (l3,) = ax3.plot([], [], [], "-", color=_LINE, lw=1.0, alpha=0.7)
+        (b3,) = ax3.plot([], [], [], "o", ms=ms3, color=_BEAD, mec="none", alpha=0.85)
+        (r3,) = ax3.plot([], [], [], "-", color=_TRACER, lw=1.0, alpha=0.6)
+        (t3,) = ax3.plot([], [], [], "o", ms=ms3 * 1.15, color=_TRACER, mec="k", mew=0.5)
+        self._artists3 = (l3, b3, r3, t3)
+        self._artists2 = []
+        for ax in (side, top):
+            (line,) = ax.plot([], [], "-", color=_LINE, lw=1.0, alpha=0.7, zorder=2)
+            (beads,) = ax.plot([], [], "o", ms=ms, color=_BEAD, mec="none", alpha=0.75, zorder=3)
+            (trail_line,) = ax.plot([], [], "-", color=_TRACER, lw=1.2, alpha=0.6, zorder=4)
+            (tr,) = ax.plot([], [], "o", ms=ms * 1.15, color=_TRACER, mec="k", mew=0.6, zorder=5)
+            self._artists2.append((line, beads, trail_line, tr))
+
+    def draw(self, rel: np.ndarray, history: np.ndarray, label: str) -> np.ndarray:
+        """Draw one frame; ``rel`` (n_beads, 3) and ``history`` (k, 3) relative to the COM.
+
+        Returns the RGB image, shape (height, width, 3), uint8.
+        """
+        closed = np.vstack([rel, rel[:1]])
+        l3, b3, r3, t3 = self._artists3
+        l3.set_data_3d(closed[:, 0], closed[:, 1], closed[:, 2])
+        b3.set_data_3d(rel[:, 0], rel[:, 1], rel[:, 2])
+        r3.set_data_3d(history[:, 0], history[:, 1], history[:, 2])
+        tb = rel[self.tracer]
+        t3.set_data_3d([tb[0]], [tb[1]], [tb[2]])
+        for (line, beads, trail_line, tr), (i, j) in zip(
+            self._artists2, ((0, 2), (0, 1)), strict=True
+        ):
+            line.set_data(closed[:, i], closed[:, j])
+            beads.set_data(rel[:, i], rel[:, j])
+            trail_line.set_data(history[:, i], history[:, j])
+            tr.set_data([tb[i]], [tb[j]])
+        self.text.set_text(label)
+        self.canvas.draw()
+        return np.asarray(self.canvas.buffer_rgba())[..., :3].copy()
+
+
+def _pad16(image: np.ndarray) -> np.ndarray:
+    """Pad an RGB image with white to a multiple of 16 pixels each way (H.264 blocks)."""
+    h, w = image.shape[:2]
+    ph, pw = (-h) % 16, (-w) % 16
+    if ph or pw:
+        image = np.pad(image, ((0, ph), (0, pw), (0, 0)), constant_values=255)
+    return image
+
+
+def render_frames(
+    positions: np.ndarray,
+    times: np.ndarray,
+    tracer: int = 0,
+    trail: int = 30,
+    dpi: float = 80,
+    title: str = "",
+):
+    """Yield the movie's RGB frames for a trajectory (all frames given are drawn).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n_frames, n_beads, 3), in d
+        Gravity along -z.
+    times : ndarray, shape (n_frames,), in tau_d
+    tracer : int
+        Index of the bead drawn in a distinct colour.
+    trail : int
+        Number of previous frames in the tracer's trail (relative to the centre of mass).
+    dpi : float
+        Resolution: the frame is 12 x 4.6 inches.
+    title : str
+
+    Yields
+    ------
+    ndarray, shape (height, width, 3), uint8
+    """
+    positions = np.asarray(positions, dtype=np.float64)
+    com = positions.mean(axis=1)
+    rel = positions - com[:, None, :]
+    scene = _Scene(positions, com, tracer, trail, dpi, title)
+    z0 = com[0, 2]
+    for k in range(len(positions)):
+        history = rel[max(0, k - trail) : k + 1, tracer]
+        label = (
+            f"t = {times[k]:.1f} $\\tau_d$    fallen {z0 - com[k, 2]:.1f} d    "
+            f"(view follows the centre of mass; red: bead {tracer})"
+        )
+        yield scene.draw(rel[k], history, label)
+
+
+def make_movie(
+    run_dir,
+    out=None,
+    fps: float = 20.0,
+    stride: int | None = None,
+    tracer: int = 0,
+    trail: int = 30,
+    t_from: float | None = None,
+    t_to: float | None = None,
+    dpi: float = 80,
+) -> MovieResult:
+    """Render a run's trajectory as a movie (MP4 with imageio-ffmpeg, else GIF).
+
+    Parameters
+    ----------
+    run_dir : path
+        A run directory (or a DCD with its PDB; see :func:`knotmm.analysis.load_run`).
+    out : path, optional
+        The movie file, ``.mp4`` or ``.gif``; default ``RUN_DIR/movie.mp4`` when
+        imageio-ffmpeg is installed, else ``RUN_DIR/movie.gif``.
+    fps : float
+        Frames per second of the movie.
+    stride : int, optional
+        Use every stride-th trajectory frame; default: 1, or larger so that the movie has at
+        most :data:`MAX_AUTO_FRAMES` frames.
+    tracer : int
+        The bead drawn in a distinct colour (negative counts from the end).
+    trail : int
+        Movie frames of the tracer's trail.
+    t_from, t_to : float, optional
+        Time window of the trajectory to show, in tau_d.
+    dpi : float
+        Resolution (the frame is 12 x 4.6 inches: 960 x 368 pixels at 80 dpi).
+
+    Returns
+    -------
+    MovieResult
+
+    Raises
+    ------
+    ConfigError
+        A bad option (named), or ``.mp4`` without imageio-ffmpeg.
+    TrajectoryFileError
+        The run cannot be read.
+    """
+    from knotmm.analysis import load_run
+
+    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
+        raise ConfigError(f"--fps {fps!r}: expected a positive number")
+    if stride is not None and (isinstance(stride, bool) or int(stride) != stride or stride < 1):
+        raise ConfigError(f"--stride {stride!r}: expected an integer >= 1")
+    if int(trail) != trail or trail < 0:
+        raise ConfigError(f"--trail {trail!r}: expected an integer >= 0")
+    if not (dpi > 0):
+        raise ConfigError(f"--dpi {dpi!r}: expected a positive number")
+    out = Path(out) if out is not None else None
+    fmt = _format_for(out)
+    data = load_run(run_dir)
+    times, positions = data.times, data.positions
+    n = data.n_beads
+    if not -n <= tracer < n:
+        raise ConfigError(f"--bead {tracer}: the chain has {n} beads (0 .. {n - 1})")
+    tracer = tracer % n
+    sel = np.ones(len(times), dtype=bool)
+    if t_from is not None:
+        sel &= times >= t_from - 1e-9
+    if t_to is not None:
+        sel &= times <= t_to + 1e-9
+    if not sel.any():
+        raise ConfigError(
+            f"--from {t_from} --to {t_to}: no frame in this window (the run has frames from "
+            f"{times[0]:g} to {times[-1]:g} tau_d)"
+        )
+    idx = np.flatnonzero(sel)
+    if stride is None:
+        stride = max(1, math.ceil(len(idx) / MAX_AUTO_FRAMES))
+    idx = idx[:: int(stride)]
+    if out is None:
+        base = data.directory if data.directory is not None else Path(".")
+        out = Path(base) / f"movie.{fmt}"
+    out.parent.mkdir(parents=True, exist_ok=True)
+
+    title = _title(data)
+    frames = render_frames(positions[idx], times[idx], tracer, int(trail), dpi, title)
+    if fmt == "mp4":
+        count = _write_mp4(out, frames, fps)
+    else:
+        count = _write_gif(out, frames, fps)
+    log.info("wrote %s (%d frames)", out, count)
+    return MovieResult(path=out, frames=count, fps=float(fps), format=fmt, stride=int(stride))
+
+
+def _title(data) -> str:
+    kind = data.get("knot.kind")
+    if kind == "torus":
+        knot = f"T({data.get('knot.p')},{data.get('knot.q')})"
+        if data.get("knot.mirror"):
+            knot += " mirrored"
+    else:
+        knot = data.get("knot.name") or kind or "chain"
+    return f"{knot}, N = {data.n_beads}"
+
+
+def _write_mp4(path: Path, frames, fps: float) -> int:
+    import imageio_ffmpeg
+
+    writer = None
+    count = 0
+    try:
+        for frame in frames:
+            frame = _pad16(frame)
+            if writer is None:
+                h, w = frame.shape[:2]
+                writer = imageio_ffmpeg.write_frames(
+                    str(path),
+                    (w, h),
+                    fps=fps,
+                    codec="libx264",
+                    pix_fmt_in="rgb24",
+                    pix_fmt_out="yuv420p",
+                    quality=7,
+                    macro_block_size=16,
+                    ffmpeg_log_level="error",
+                )
+                writer.send(None)
+            writer.send(np.ascontiguousarray(frame).tobytes())
+            count += 1
+    finally:
+        if writer is not None:
+            writer.close()
+    return count
+
+
+def _write_gif(path: Path, frames, fps: float) -> int:
+    from PIL import Image
+
+    images = [
+        Image.fromarray(f).quantize(colors=128, method=Image.Quantize.MEDIANCUT) for f in frames
+    ]
+    if not images:
+        raise ConfigError("no frames to write")
+    duration = max(20, int(round(1000.0 / fps)))  # GIF delays are in 10 ms units
+    images[0].save(
+        path,
+        save_all=True,
+        append_images=images[1:],
+        duration=duration,
+        loop=0,
+        optimize=False,
+        disposal=1,
+    )
+    return len(images)
