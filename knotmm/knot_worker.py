@@ -47,6 +47,32 @@ class _Pending:
 log = logging.getLogger(__name__)
 
 
+def _watch_parent(parent_pid: int) -> None:
+    """In the worker: exit as soon as the simulating process is gone (even after SIGKILL)."""
+    import os
+    import threading
+    import time
+
+    def watch():
+        while True:
+            time.sleep(0.5)
+            if os.getppid() != parent_pid:
+                os._exit(0)
+
+    threading.Thread(target=watch, name="knotmm-parent-watch", daemon=True).start()
+
+
+def _new_pool() -> ProcessPoolExecutor:
+    import os
+
+    return ProcessPoolExecutor(
+        max_workers=1,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_watch_parent,
+        initargs=(os.getpid(),),
+    )
+
+
 def _identify(positions: np.ndarray, chiral: bool) -> str | None:
     from knotmm.knots import identify_knot
 
@@ -76,9 +102,7 @@ class IsolatedKnotIdentifier:
             return _identify(positions, self.chiral)
         try:
             if self._pool is None:
-                self._pool = ProcessPoolExecutor(
-                    max_workers=1, mp_context=multiprocessing.get_context("spawn")
-                )
+                self._pool = _new_pool()
             return self._pool.submit(_identify, positions, self.chiral).result(self.timeout)
         except BrokenProcessPool:
             log.warning("the knot-identification worker crashed; this check is skipped")
@@ -102,9 +126,7 @@ class IsolatedKnotIdentifier:
         if not self._in_process:
             try:
                 if self._pool is None:
-                    self._pool = ProcessPoolExecutor(
-                        max_workers=1, mp_context=multiprocessing.get_context("spawn")
-                    )
+                    self._pool = _new_pool()
                 return _Pending(self, self._pool.submit(_identify, positions, self.chiral))
             except (OSError, AssertionError, BrokenProcessPool) as exc:
                 log.info("knot checks run in-process (%s)", exc)

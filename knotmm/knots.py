@@ -333,14 +333,28 @@ def _topoly_guard():
     guard keeps a copy of descriptor 0 and puts it back afterwards, and makes sure that
     descriptor 0 is occupied during the call so that no file of ours can land there.
     """
+    import signal
+    import threading
+
     stdin_copy = os.dup(0) if _fd_open(0) else None
     placeholder = None
     if stdin_copy is None:
         placeholder = os.open(os.devnull, os.O_RDONLY)  # lowest free descriptor: 0
+    # topoly's C code installs its own handlers for termination signals, after which
+    # Python's never run again (SIGTERM then neither stops nor cleans up): keep ours.
+    handlers = {}
+    if threading.current_thread() is threading.main_thread():
+        for name in ("SIGTERM", "SIGINT", "SIGHUP"):
+            sig = getattr(signal, name, None)
+            if sig is not None:
+                handlers[sig] = signal.getsignal(sig)
     try:
         with quiet_output():
             yield
     finally:
+        for sig, handler in handlers.items():
+            if handler is not None:
+                signal.signal(sig, handler)
         if stdin_copy is not None:
             os.dup2(stdin_copy, 0)
             os.close(stdin_copy)

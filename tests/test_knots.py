@@ -198,3 +198,25 @@ def test_identify_knot_without_topoly(monkeypatch):
 def test_identify_knot_rejects_batches():
     with pytest.raises(ValueError, match="one frame"):
         identify_knot(np.zeros((2, 10, 3)))
+
+
+def test_identify_knot_keeps_python_signal_handlers():
+    """topoly's C code installs its own termination handlers; ours must survive a call."""
+    import os
+    import signal
+    import time
+
+    from knotmm.knots import identify_knot, topoly_available
+    from knotmm.templates import torus_knot
+
+    if not topoly_available():
+        pytest.skip("needs topoly")
+    hits = []
+    previous = signal.signal(signal.SIGTERM, lambda *args: hits.append(1))
+    try:
+        assert identify_knot(torus_knot(2, 3, 60)) == "3_1"
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.05)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert hits == [1]

@@ -166,3 +166,45 @@ def test_isolated_identifier_names_a_trefoil_and_its_mirror():
         assert identify(torus_knot(2, 3, 60, mirror=True)) == "-3_1"
     finally:
         identify.close()
+
+
+def test_identifier_worker_exits_when_its_parent_is_killed(tmp_path):
+    """A run killed with SIGKILL must not leave its knot-identification worker behind."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "parent.py"
+    pidfile = tmp_path / "worker.pid"
+    script.write_text(
+        "import multiprocessing, sys, time\n"
+        "from knotmm.knot_worker import IsolatedKnotIdentifier\n"
+        "from knotmm.templates import torus_knot\n"
+        "if __name__ == '__main__':\n"
+        "    ident = IsolatedKnotIdentifier()\n"
+        "    print(ident(torus_knot(2, 3, 40)), flush=True)\n"
+        "    pid = list(ident._pool._processes)[0]\n"
+        f"    open({str(pidfile)!r}, 'w').write(str(pid))\n"
+        "    time.sleep(60)\n"
+    )
+    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    assert parent.stdout.readline().strip() == "+3_1"
+    deadline = time.monotonic() + 30
+    while not pidfile.exists():
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    worker = int(pidfile.read_text())
+    parent.send_signal(signal.SIGKILL)
+    parent.wait()
+    deadline = time.monotonic() + 10
+    while True:
+        try:
+            os.kill(worker, 0)
+        except ProcessLookupError:
+            break
+        if time.monotonic() > deadline:
+            os.kill(worker, signal.SIGKILL)
+            pytest.fail("the worker outlived its parent by 10 s")
+        time.sleep(0.1)

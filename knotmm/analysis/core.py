@@ -90,7 +90,18 @@ def analyze(
     q = _check_int(q, "--q")
     notes = list(data.notes)
     times, positions = data.times, data.positions
-    window = steady_window(times, positions, t_from=t_from, t_to=t_to)
+    # A change of knot type (strands passing through each other) ends any periodic state:
+    # unless --to is given, the window stops at the last frame before the first change.
+    t_end = t_to
+    if t_to is None and knot_samples > 0 and len(times) > 2:
+        scan = knot_types(times, positions, 0, len(times) - 1, samples=knot_samples)
+        if scan.changed_frame is not None and scan.changed_frame >= 2:
+            t_end = float(times[scan.changed_frame - 1])
+            notes.append(
+                f"the knot type changed at t = {scan.changed_at:g} tau_d "
+                f"({scan.initial} -> {scan.end}): the window ends before it"
+            )
+    window = steady_window(times, positions, t_from=t_from, t_to=t_end)
     notes += window.notes
     sel = window.frames
     t_w, x_w = times[sel], positions[sel]
