@@ -18,11 +18,11 @@ from __future__ import annotations
 import json
 import os
 import struct
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from knotmm.atomic import write_atomic
 from knotmm.errors import TrajectoryFileError
 
 __all__ = [
@@ -49,17 +49,7 @@ def save_checkpoint(path: Path, simulation, counters: dict) -> None:
         "integrator_state": np.array(json.dumps(state)),
         "counters": np.array(json.dumps(counters)),
     }
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **payload)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_atomic(path, lambda fh: np.savez(fh, **payload))
 
 
 def load_checkpoint(path: Path) -> dict:

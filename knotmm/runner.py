@@ -25,7 +25,6 @@ import datetime as _dt
 import logging
 import math
 import os
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from knotmm import __version__
+from knotmm.atomic import write_text_atomic
 from knotmm.config import RunConfig, read_toml
 from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault, TrajectoryFileError
 from knotmm.reporters import DCDReporter, ObservablesReporter, ProgressReporter
@@ -116,20 +116,8 @@ class RunResult:
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Write a text file atomically (temporary file in the same directory, then rename)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.chmod(tmp, 0o644)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Write a text file atomically (see :mod:`knotmm.atomic`)."""
+    write_text_atomic(path, text)
 
 
 def run_status(directory: Path) -> str | None:

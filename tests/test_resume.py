@@ -89,6 +89,16 @@ def test_kill_and_resume_equals_uninterrupted(tmp_path, reference, kill_after_ch
                                    atol=1e-6)
 
 
+def _unfinished_copy(reference: Path, directory: Path) -> Path:
+    """A copy of the reference run whose run.toml says it is still running."""
+    directory.mkdir()
+    for f in reference.iterdir():
+        (directory / f.name).write_bytes(f.read_bytes())
+    text = (directory / "run.toml").read_text()
+    (directory / "run.toml").write_text(text.replace('status = "finished"', 'status = "running"'))
+    return directory
+
+
 def test_resume_of_a_finished_run_is_refused(reference, capsys):
     assert main(["run", "--resume", str(reference)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -96,13 +106,7 @@ def test_resume_of_a_finished_run_is_refused(reference, capsys):
 
 
 def test_resume_with_a_corrupt_checkpoint_says_so(tmp_path, reference, capsys):
-    directory = tmp_path / "copy"
-    directory.mkdir()
-    for f in reference.iterdir():
-        (directory / f.name).write_bytes(f.read_bytes())
-    text = (directory / "run.toml").read_text().replace('status = "finished"',
-                                                        'status = "running"')
-    (directory / "run.toml").write_text(text)
+    directory = _unfinished_copy(reference, tmp_path / "copy")
     (directory / "checkpoint.npz").write_bytes(b"not a checkpoint")
     before = (directory / "trajectory.dcd").read_bytes()
     assert main(["run", "--resume", str(directory)]) == 2
@@ -112,13 +116,7 @@ def test_resume_with_a_corrupt_checkpoint_says_so(tmp_path, reference, capsys):
 
 
 def test_resume_with_a_truncated_trajectory_says_so(tmp_path, reference, capsys):
-    directory = tmp_path / "copy"
-    directory.mkdir()
-    for f in reference.iterdir():
-        (directory / f.name).write_bytes(f.read_bytes())
-    text = (directory / "run.toml").read_text().replace('status = "finished"',
-                                                        'status = "running"')
-    (directory / "run.toml").write_text(text)
+    directory = _unfinished_copy(reference, tmp_path / "copy")
     dcd = directory / "trajectory.dcd"
     dcd.write_bytes(dcd.read_bytes()[:2000])
     assert main(["run", "--resume", str(directory)]) == 2
