@@ -91,17 +91,18 @@ def analyze(
     notes = list(data.notes)
     times, positions = data.times, data.positions
     # A change of knot type (strands passing through each other) ends any periodic state:
-    # unless --to is given, the window stops at the last frame before the first change.
-    t_end = t_to
+    # unless --to is given, the window is looked for only in the frames before the first
+    # change (the same detection, on a shorter trajectory, so a collapse is still found).
+    n_usable = len(times)
     if t_to is None and knot_samples > 0 and len(times) > 2:
         scan = knot_types(times, positions, 0, len(times) - 1, samples=knot_samples)
         if scan.changed_frame is not None and scan.changed_frame >= 2:
-            t_end = float(times[scan.changed_frame - 1])
+            n_usable = int(scan.changed_frame)
             notes.append(
                 f"the knot type changed at t = {scan.changed_at:g} tau_d "
                 f"({scan.initial} -> {scan.end}): the window ends before it"
             )
-    window = steady_window(times, positions, t_from=t_from, t_to=t_end)
+    window = steady_window(times[:n_usable], positions[:n_usable], t_from=t_from, t_to=t_to)
     notes += window.notes
     sel = window.frames
     t_w, x_w = times[sel], positions[sel]
