@@ -41,8 +41,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _terminate(signum, frame):
+    """SIGTERM (a batch system ending a job) stops a run like Ctrl-C: status recorded."""
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``knotmm`` console script."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminate)
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(
@@ -55,7 +65,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"knotmm: error: {exc}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
-        print("knotmm: interrupted; files written so far are kept", file=sys.stderr)
+        print("knotmm: interrupted; files written so far are kept (a run continues with "
+              "knotmm run --resume DIR)", file=sys.stderr)
         return 130
     except BrokenPipeError:  # output piped into a pager or `head` that closed early
         import os

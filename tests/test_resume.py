@@ -56,8 +56,11 @@ def _checkpoints_written(directory: Path) -> int:
         return 0
 
 
-@pytest.mark.parametrize("kill_after_checkpoints", [1, 4, 9])
-def test_kill_and_resume_equals_uninterrupted(tmp_path, reference, kill_after_checkpoints):
+@pytest.mark.parametrize(
+    ("sig", "kill_after_checkpoints"),
+    [(signal.SIGKILL, 1), (signal.SIGKILL, 4), (signal.SIGKILL, 9), (signal.SIGTERM, 3)],
+)
+def test_kill_and_resume_equals_uninterrupted(tmp_path, reference, sig, kill_after_checkpoints):
     directory = tmp_path / "run"
     run_file = _write_run_file(tmp_path / "run.toml", directory)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -71,10 +74,13 @@ def test_kill_and_resume_equals_uninterrupted(tmp_path, reference, kill_after_ch
     while _checkpoints_written(directory) < kill_after_checkpoints and proc.poll() is None:
         assert time.monotonic() < deadline
         time.sleep(0.01)
-    proc.send_signal(signal.SIGKILL)
+    proc.send_signal(sig)
     proc.wait()
     if proc.returncode == 0:  # finished before the kill: nothing to resume
         pytest.skip("the run finished before it could be killed")
+    if sig == signal.SIGTERM:  # a batch system's stop: recorded, like Ctrl-C
+        assert proc.returncode == 130
+        assert 'status = "interrupted"' in (directory / "run.toml").read_text()
     assert main(["run", "--resume", str(directory), "--no-progress"]) == 0
     traj, rows = _load(directory)
     ref_traj, ref_rows = _load(reference)
