@@ -173,7 +173,7 @@ def truncate_csv(path: Path, n_rows: int) -> None:
         raise TrajectoryFileError(f"observables {str(path)!r} are missing; cannot resume")
     with open(path, "rb") as fh:
         lines = fh.read().split(b"\n")
-    complete = [line for line in lines[: n_rows + 1]]
+    complete = lines[: n_rows + 1]
     if len(complete) < n_rows + 1 or any(not line for line in complete):
         raise TrajectoryFileError(
             f"observables {str(path)!r} hold fewer rows than the checkpoint counts ({n_rows})"

@@ -46,9 +46,6 @@ __all__ = [
     "parse_override",
 ]
 
-_NO_DEFAULT = object()
-
-
 @dataclass(frozen=True)
 class Key:
     """One run-file key: its type, default, allowed range and meaning.

@@ -97,24 +97,7 @@ class IsolatedKnotIdentifier:
         self._in_process = multiprocessing.current_process().daemon
 
     def __call__(self, positions) -> str | None:
-        positions = np.array(positions, dtype=np.float64)
-        if self._in_process:
-            return _identify(positions, self.chiral)
-        try:
-            if self._pool is None:
-                self._pool = _new_pool()
-            return self._pool.submit(_identify, positions, self.chiral).result(self.timeout)
-        except BrokenProcessPool:
-            log.warning("the knot-identification worker crashed; this check is skipped")
-        except FutureTimeout:
-            log.warning("knot identification took over %g s; this check is skipped",
-                        self.timeout)
-        except (OSError, AssertionError) as exc:  # cannot start a child process here
-            log.info("knot checks run in-process (%s)", exc)
-            self._in_process = True
-            return _identify(positions, self.chiral)
-        self.close()
-        return None
+        return self.submit(positions).result()
 
     def submit(self, positions):
         """Start an identification and return a handle whose ``result()`` gives the name.
@@ -128,7 +111,11 @@ class IsolatedKnotIdentifier:
                 if self._pool is None:
                     self._pool = _new_pool()
                 return _Pending(self, self._pool.submit(_identify, positions, self.chiral))
-            except (OSError, AssertionError, BrokenProcessPool) as exc:
+            except BrokenProcessPool:
+                log.warning("the knot-identification worker crashed; this check is skipped")
+                self.close()
+                return _Done(None)
+            except (OSError, AssertionError) as exc:  # cannot start a child process here
                 log.info("knot checks run in-process (%s)", exc)
                 self._in_process = True
         return _Done(_identify(positions, self.chiral))

@@ -25,16 +25,20 @@ __all__ = ["rpy_velocities", "rpy_matrix", "pair_coefficients"]
 
 @numba.njit(cache=True, inline="always")
 def _pair_coefficients(r):
-    """Coefficients ``(a, b)`` with ``mu_ij = a I + b rvec rvec^T`` (``rvec`` unnormalised)."""
+    """Coefficients ``(a, b)`` with ``mu_ij = a I + b rvec rvec^T`` (``rvec`` unnormalised).
+
+    Written without an early exit so that the pair loop that inlines it vectorises; at
+    ``r = 0`` (a bead with itself, or an exact overlap) it gives the limit ``mu = I``.
+    """
+    inv = 1.0 / max(r, 1e-300)
+    inv2 = inv * inv
     if r >= 1.0:
-        inv = 1.0 / r
-        inv2 = inv * inv
         a = 0.375 * inv * (1.0 + inv2 / 6.0)
         b = 0.375 * inv * (1.0 - 0.5 * inv2) * inv2
-    elif r > 0.0:
-        a = 1.0 - 0.5625 * r
-        b = 0.1875 / r
     else:
+        a = 1.0 - 0.5625 * r
+        b = 0.1875 * inv
+    if r == 0.0:
         a = 1.0
         b = 0.0
     return a, b
@@ -76,19 +80,7 @@ def _velocities_kernel(xt, ft, vt):
             r0 = xs[j] - xi
             r1 = ys[j] - yi
             r2 = zs[j] - zi
-            rr = r0 * r0 + r1 * r1 + r2 * r2
-            r = np.sqrt(rr)
-            inv = 1.0 / max(r, 1e-300)
-            inv2 = inv * inv
-            if r >= 1.0:
-                a = 0.375 * inv * (1.0 + inv2 / 6.0)
-                b = 0.375 * inv * (1.0 - 0.5 * inv2) * inv2
-            else:
-                a = 1.0 - 0.5625 * r
-                b = 0.1875 * inv
-            if rr == 0.0:  # the bead itself, or an exact overlap: mu = I (the r -> 0 limit)
-                a = 1.0
-                b = 0.0
+            a, b = _pair_coefficients(np.sqrt(r0 * r0 + r1 * r1 + r2 * r2))
             rf = b * (r0 * fx[j] + r1 * fy[j] + r2 * fz[j])
             ax += a * fx[j] + rf * r0
             ay += a * fy[j] + rf * r1

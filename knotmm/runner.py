@@ -32,11 +32,11 @@ from pathlib import Path
 import numpy as np
 
 from knotmm import __version__
-from knotmm.atomic import write_text_atomic
+from knotmm.atomic import write_text_atomic as write_atomic
 from knotmm.config import RunConfig, read_toml
 from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault, TrajectoryFileError
 from knotmm.reporters import DCDReporter, ObservablesReporter, ProgressReporter
-from knotmm.simulation import Simulation, select_platform
+from knotmm.simulation import Simulation
 from knotmm.system import ChainModel
 
 __all__ = ["RunResult", "run", "resume", "prepare_directory", "RUN_FILES", "write_atomic"]
@@ -115,11 +115,6 @@ class RunResult:
         )
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write a text file atomically (see :mod:`knotmm.atomic`)."""
-    write_text_atomic(path, text)
-
-
 def run_status(directory: Path) -> str | None:
     """The ``[knotmm] status`` of a run directory, or None if it has no readable run.toml."""
     path = Path(directory) / "run.toml"
@@ -167,7 +162,7 @@ def prepare_directory(directory: Path, overwrite: bool) -> None:
         p.unlink()
 
 
-def _header(cfg: RunConfig) -> str:
+def _header() -> str:
     return (
         f"# knotmm run file, written by knotmm {__version__}.\n"
         f"# Every resolved parameter; use it again with `knotmm run run.toml`.\n"
@@ -181,29 +176,19 @@ def write_run_toml(directory: Path, cfg: RunConfig, facts: dict) -> None:
 
     data = cfg.to_dict()
     data["knotmm"] = {k: v for k, v in facts.items() if v is not None}
-    write_atomic(Path(directory) / "run.toml", _header(cfg) + tomli_w.dumps(data))
+    write_atomic(Path(directory) / "run.toml", _header() + tomli_w.dumps(data))
 
 
-def _make_simulation(cfg: RunConfig, positions) -> Simulation:
-    from knotmm.brownian import integrator_from_config
-
-    model = ChainModel.from_config(cfg)
-    integrator = integrator_from_config(cfg)
+def _make_simulation(cfg: RunConfig, positions, integrator) -> Simulation:
+    """The Simulation of a run; fails (platform, starting positions) before any writing."""
     return Simulation(
         positions,
-        model,
+        ChainModel.from_config(cfg),
         integrator,
         platform=cfg["run.platform"],
         threads=cfg["run.threads"],
         max_bond_length=cfg["run.max_bond_length"],
     )
-
-
-def _check_peclet(cfg: RunConfig) -> None:
-    """Check that the integrator fits the Peclet number (before anything is written)."""
-    from knotmm.brownian import integrator_from_config
-
-    integrator_from_config(cfg)
 
 
 def run(
@@ -238,22 +223,22 @@ def run(
         of the last good state is written, and ``run.toml`` says ``status = "fault"`` with
         the message.
     """
+    from knotmm.brownian import integrator_from_config
     from knotmm.pdbfile import write_pdb
     from knotmm.templates import build_template
 
     wall0 = time.perf_counter()
     directory = Path(directory if directory is not None else cfg["output.directory"])
-    _check_peclet(cfg)
+    integrator = integrator_from_config(cfg)  # checks integrator against run.peclet
     template = build_template(cfg)
     if template.resolved:
         cfg = cfg.replace(template.resolved)
     n_beads = template.positions.shape[0]
-    select_platform(cfg["run.platform"], n_beads, cfg["run.threads"])  # fails before writing
+    sim = _make_simulation(cfg, template.positions, integrator)
     prepare_directory(directory, overwrite)
     if cfg["output.directory"] != str(directory):
         cfg = cfg.replace({"output.directory": str(directory)})
 
-    sim = _make_simulation(cfg, template.positions)
     directory.mkdir(parents=True, exist_ok=True)
     write_pdb(directory / "topology.pdb", template.positions)
     write_atomic(directory / "view.vmd", VMD_SCRIPT.format(version=__version__))
@@ -306,8 +291,10 @@ def resume(directory: str | os.PathLike, progress: bool | None = None) -> RunRes
             f"--resume {str(directory)!r}: the run already finished; run longer with a new "
             f"run file (its run.toml, with a larger run.duration) in another directory"
         )
+    from knotmm.brownian import integrator_from_config
+
     cfg = load_run_file(directory / "run.toml")
-    _check_peclet(cfg)
+    integrator = integrator_from_config(cfg)
     ckpt = load_checkpoint(directory / CHECKPOINT_NAME)
     if ckpt["integrator"] != cfg["run.integrator"]:
         raise TrajectoryFileError(
@@ -317,7 +304,7 @@ def resume(directory: str | os.PathLike, progress: bool | None = None) -> RunRes
     counters = ckpt["counters"]
     truncate_dcd(directory / "trajectory.dcd", int(counters["frames"]))
     truncate_csv(directory / "observables.csv", int(counters["rows"]))
-    sim = _make_simulation(cfg, ckpt["positions"])
+    sim = _make_simulation(cfg, ckpt["positions"], integrator)
     sim.integrator.set_state(ckpt["integrator_state"])
     sim.time = ckpt["time"]
     sim.currentStep = ckpt["step"]

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import logging
 import math
-import time as _time
 
 import numpy as np
 import openmm
@@ -349,8 +348,3 @@ def _state_forces(state, n_particles: int) -> np.ndarray:
 def _slack(t: float) -> float:
     """Time tolerance for "has this report time come": relative 1e-9, none at infinity."""
     return 1e-9 * max(1.0, abs(t)) if math.isfinite(t) else 0.0
-
-
-def wall_clock() -> float:
-    """Monotonic wall time in seconds (for summaries)."""
-    return _time.perf_counter()
