@@ -38,6 +38,7 @@ import time
 
 import numpy as np
 
+from knotmm.knots import writhe
 from knotmm.mobility import rpy_velocities
 from knotmm.simulation import Simulation
 from knotmm.templates import torus_knot
@@ -148,6 +149,12 @@ def main(argv=None):
                 f"{c['velocity'] * 1e6:>10.1f} {c['velocity'] / c['mobility']:>8.2f}",
                 flush=True,
             )
+    print()
+    print("writhe (numba double sum, used by analysis and the templates), ms per call")
+    for n in args.beads:
+        x = torus_knot(2, 3, n)
+        inner = max(3, int(2e6 / n**2))
+        print(f"{n:>5} {_median_time(lambda x=x: writhe(x), args.repeats, inner) * 1e3:>10.3f}")
     print()
     for plat in args.platforms:
         if (plat, 120) in results:

@@ -118,17 +118,6 @@ def test_writhe_of_random_polygons_is_odd_under_mirroring(seed, n):
     assert writhe(x * np.array([-1.0, 1.0, 1.0])) == pytest.approx(-w, abs=1e-9)
 
 
-def test_writhe_is_fast_for_120_beads():
-    import time
-
-    x = torus_curve(2, 3, 120)
-    writhe(x)  # compile
-    start = time.perf_counter()
-    for _ in range(20):
-        writhe(x)
-    assert (time.perf_counter() - start) / 20 < 0.05
-
-
 def test_writhe_rejects_bad_input():
     with pytest.raises(ValueError, match="shape"):
         writhe(np.zeros((10, 2)))
