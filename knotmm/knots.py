@@ -332,9 +332,13 @@ def _topoly_guard():
     call (topoly 1.2.1); a later call would then close whatever file took descriptor 0. The
     guard keeps a copy of descriptor 0 and puts it back afterwards, and makes sure that
     descriptor 0 is occupied during the call so that no file of ours can land there.
+    It also raises Python's recursion limit to 10000 for good; the caller's is put back.
     """
     import signal
+    import sys
     import threading
+
+    recursion_limit = sys.getrecursionlimit()
 
     stdin_copy = os.dup(0) if _fd_open(0) else None
     placeholder = None
@@ -352,6 +356,7 @@ def _topoly_guard():
         with quiet_output():
             yield
     finally:
+        sys.setrecursionlimit(recursion_limit)
         for sig, handler in handlers.items():
             if handler is not None:
                 signal.signal(sig, handler)

@@ -209,3 +209,21 @@ def test_identify_knot_keeps_python_signal_handlers():
     finally:
         signal.signal(signal.SIGTERM, previous)
     assert hits == [1]
+
+
+def test_identify_knot_leaves_the_recursion_limit_alone():
+    """topoly raises Python's recursion limit on every call; the caller's must come back."""
+    import sys
+
+    from knotmm.knots import identify_knot, topoly_available
+    from knotmm.templates import torus_knot
+
+    if not topoly_available():
+        pytest.skip("needs topoly")
+    before = sys.getrecursionlimit()
+    sys.setrecursionlimit(1234)
+    try:
+        assert identify_knot(torus_knot(2, 3, 60)) == "3_1"
+        assert sys.getrecursionlimit() == 1234
+    finally:
+        sys.setrecursionlimit(before)
