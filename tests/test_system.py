@@ -162,7 +162,7 @@ def test_cpu_platform_matches_numpy_loosely(config):
 
 
 def test_bend_forces_near_pi_identical_on_cpu_and_reference():
-    """HarmonicAngleForce near pi: the CPU platform gives the Reference (double) result."""
+    """The bending force near pi: the CPU platform gives the Reference (double) result."""
     x = CONFIGS["nearly_straight"]
     ref, _ = _context(x, platform="Reference")
     cpu, _ = _context(x, platform="CPU")
@@ -283,7 +283,7 @@ def test_forces_are_named_and_grouped():
     assert set(named) == set(TERMS)
     assert len(system.getForces()) == 4
     assert isinstance(named["bond"], openmm.HarmonicBondForce)
-    assert isinstance(named["bend"], openmm.HarmonicAngleForce)
+    assert isinstance(named["bend"], openmm.CustomAngleForce)
     assert isinstance(named["steric"], openmm.NonbondedForce)
     assert isinstance(named["gravity"], openmm.CustomExternalForce)
     groups = {name: f.getForceGroup() for name, f in named.items()}
