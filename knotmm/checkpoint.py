@@ -7,7 +7,8 @@ a stochastic integrator) and how many frames and observables rows had been writt
 written atomically (temporary file, fsync, rename), so a run killed at any moment, SIGKILL
 included, leaves either the previous checkpoint or the new one, never a broken file.
 
-Checkpoints are taken at frame times, right after the frame is written. To resume, the
+Checkpoints are taken at frame times, right after the frame is written, and also at a fault
+and at a stop asked for by a signal (:mod:`knotmm.interrupt`), between two steps. To resume, the
 trajectory is cut back to the checkpoint's frame count (frames written after it, possibly a
 half-written one, are dropped) and the observables table to its row count; then both are
 appended to.
@@ -101,7 +102,8 @@ class CheckpointReporter:
     interval : float
         In tau_d.
     counters : callable
-        Returns the dict of output counters to store (frames and rows written, ...).
+        ``counters(next_checkpoint)`` returns the dict of output counters to store (frames
+        and rows written, ...), given the index of the next periodic checkpoint.
     first_index : int
         Index of the next checkpoint (checkpoint k is at ``k * interval``).
     """
@@ -118,12 +120,13 @@ class CheckpointReporter:
         return self.index * self.interval
 
     def report(self, simulation, state) -> None:
-        save_checkpoint(self.path, simulation, self._counters())
+        save_checkpoint(self.path, simulation, self._counters(self.index + 1))
         self.index += 1
 
     def save_now(self, simulation) -> None:
-        """Write a checkpoint of the current state (at a fault or the end of a run)."""
-        save_checkpoint(self.path, simulation, self._counters())
+        """Write a checkpoint of the current state, between periodic ones (at a fault, or a
+        stop asked for by a signal); the periodic schedule goes on unchanged after resume."""
+        save_checkpoint(self.path, simulation, self._counters(self.index))
 
 
 def _dcd_layout(path: Path) -> tuple[int, int, int]:

@@ -48,10 +48,17 @@ log = logging.getLogger(__name__)
 
 
 def _watch_parent(parent_pid: int) -> None:
-    """In the worker: exit as soon as the simulating process is gone (even after SIGKILL)."""
+    """In the worker: exit as soon as the simulating process is gone (even after SIGKILL).
+
+    Ctrl-C on a terminal reaches the worker too; it is ignored here, since the simulating
+    process decides how a run stops (and shuts the worker down).
+    """
     import os
+    import signal
     import threading
     import time
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     def watch():
         while True:

@@ -21,6 +21,7 @@ and an existing run directory is never overwritten without ``overwrite=True``.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import logging
 import math
@@ -318,6 +319,7 @@ def resume(directory: str | os.PathLike, progress: bool | None = None) -> RunRes
 def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
     """Attach the reporters, run to ``run.duration``, and record the outcome in run.toml."""
     from knotmm.checkpoint import CHECKPOINT_NAME, CheckpointReporter
+    from knotmm.interrupt import StopRequested
     from knotmm.knots import topoly_available
     from knotmm.reporters import KnotTypeWatch
 
@@ -348,11 +350,11 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
         )
         reporters.append(watch)
 
-    def current_counters():
+    def current_counters(next_checkpoint):
         return {
             "frames": dcd.index,
             "rows": obs.index,
-            "checkpoints": ckpt.index + 1,
+            "checkpoints": next_checkpoint,
             "checks": watch.index if watch else 0,
         }
 
@@ -374,6 +376,15 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
     except SimulationFault as exc:
         status, message = "fault", str(exc)
         ckpt.save_now(sim)  # the last good state
+        raise
+    except StopRequested:
+        # Stopped between two steps (knotmm.interrupt): save this exact state, so that a
+        # resumed run goes on from here rather than from the last periodic checkpoint.
+        status, message = "interrupted", "interrupted by the user"
+        if watch is not None:
+            with contextlib.suppress(Exception):  # record checks already under way
+                watch.collect(wait=True)
+        ckpt.save_now(sim)
         raise
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"

@@ -32,6 +32,7 @@ from openmm import unit
 
 from knotmm.errors import ConfigError, SimulationFault
 from knotmm.integrators import RK23, Integrator, StepSizeUnderflow
+from knotmm.interrupt import raise_if_requested
 from knotmm.mobility import rpy_velocities
 from knotmm.system import (
     FORCE_GROUPS,
@@ -253,8 +254,16 @@ class Simulation:
         # 16-40 ms with oversubscribed threads, measured at N = 90 on 2 cores.
         from threadpoolctl import threadpool_limits
 
-        with threadpool_limits(limits=1, user_api="blas"):
-            self._simulate_loop(end_step, end_time, write_at_start)
+        try:
+            with threadpool_limits(limits=1, user_api="blas"):
+                self._simulate_loop(end_step, end_time, write_at_start)
+        except BaseException:
+            try:  # the Context follows the last whole step; the error that stopped us wins
+                self._sync_context()
+            except Exception:  # noqa: BLE001
+                pass
+            raise
+        self._sync_context()
 
     def _simulate_loop(self, end_step, end_time, write_at_start):
         end_step = math.inf if end_step is None else end_step
@@ -283,6 +292,9 @@ class Simulation:
                 remaining = time_target - self.time
                 if remaining <= _slack(time_target):
                     break
+                # Here every report due at the current time has been made: a stop asked
+                # for by a signal (knotmm.interrupt) leaves a whole state to checkpoint.
+                raise_if_requested()
                 self._advance(remaining)
                 if abs(time_target - self.time) <= _slack(time_target):
                     self.time = time_target
@@ -295,7 +307,6 @@ class Simulation:
                 elif due_step.get(id(r)) == self.currentStep:
                     due.append(r)
             self._report(due)
-        self._sync_context()
 
     def _report(self, reporters) -> None:
         if not reporters:

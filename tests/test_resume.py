@@ -81,6 +81,8 @@ def test_kill_and_resume_equals_uninterrupted(tmp_path, reference, sig, kill_aft
     if sig == signal.SIGTERM:  # a batch system's stop: recorded, like Ctrl-C
         assert proc.returncode == 130
         assert 'status = "interrupted"' in (directory / "run.toml").read_text()
+        # stopped between two steps, with that exact state checkpointed
+        assert _checkpoint_time(directory) == _time_reached(directory)
     assert main(["run", "--resume", str(directory), "--no-progress"]) == 0
     traj, rows = _load(directory)
     ref_traj, ref_rows = _load(reference)
@@ -93,6 +95,51 @@ def test_kill_and_resume_equals_uninterrupted(tmp_path, reference, sig, kill_aft
         assert ta[:2] == tb[:2]  # time and step
         np.testing.assert_allclose([float(v) for v in ta[2:5]], [float(v) for v in tb[2:5]],
                                    atol=1e-6)
+
+
+def _checkpoint_time(directory: Path) -> float:
+    with np.load(directory / "checkpoint.npz") as data:
+        return float(data["time"])
+
+
+def _time_reached(directory: Path) -> float:
+    from knotmm.config import read_toml
+
+    return float(read_toml(directory / "run.toml")["knotmm"]["time_reached"])
+
+
+def test_ctrl_c_checkpoints_the_state_it_stopped_at(tmp_path, reference):
+    """SIGINT (knot watch on): the step finishes, that state is checkpointed, resume is exact."""
+    directory = tmp_path / "run"
+    run_file = _write_run_file(tmp_path / "run.toml", directory)
+    text = run_file.read_text().replace("topology_check_interval = 0.0", "")
+    run_file.write_text(text.replace("[run]\n", "[run]\ntopology_check_interval = 0.5\n"))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "knotmm.cli", "run", str(run_file), "--no-progress"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while _checkpoints_written(directory) < 3 and proc.poll() is None:
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    time.sleep(0.13)  # somewhere between two checkpoints
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    if proc.returncode == 0:
+        pytest.skip("the run finished before it could be interrupted")
+    assert proc.returncode == 130, err
+    assert "stopping after the current step" in err
+    assert "Traceback" not in err
+    stopped = _time_reached(directory)
+    assert _checkpoint_time(directory) == stopped
+    assert main(["run", "--resume", str(directory), "--no-progress"]) == 0
+    traj, rows = _load(directory)
+    ref_traj, ref_rows = _load(reference)
+    assert traj.n_frames == ref_traj.n_frames
+    np.testing.assert_allclose(traj.xyz, ref_traj.xyz, rtol=0, atol=1e-5)
+    assert [r.split(",")[:2] for r in rows] == [r.split(",")[:2] for r in ref_rows]
 
 
 def _unfinished_copy(reference: Path, directory: Path) -> Path:

@@ -65,6 +65,7 @@ def config_from_args(args) -> RunConfig:
 def execute(args) -> int:
     """Run and print the one-line summary."""
     from knotmm.errors import ConfigError
+    from knotmm.interrupt import stop_between_steps
     from knotmm.runner import resume, run
 
     if args.resume:
@@ -76,9 +77,12 @@ def execute(args) -> int:
                 f"--resume takes no other run options (got {', '.join(given)}): a resumed run "
                 f"keeps the parameters in its run.toml"
             )
-        print(resume(args.resume, progress=args.progress).summary())
+        # Ctrl-C / SIGTERM: finish the step, checkpoint that state, then stop (exit 130)
+        with stop_between_steps():
+            print(resume(args.resume, progress=args.progress).summary())
         return 0
     cfg = config_from_args(args)
-    result = run(cfg, overwrite=args.overwrite, progress=args.progress)
+    with stop_between_steps():
+        result = run(cfg, overwrite=args.overwrite, progress=args.progress)
     print(result.summary())
     return 0
