@@ -56,6 +56,22 @@ def _checkpoints_written(directory: Path) -> int:
         return 0
 
 
+def _start_run(run_file: Path, directory: Path, checkpoints: int, stderr) -> subprocess.Popen:
+    """Start ``knotmm run`` in a subprocess; return once it has written ``checkpoints``."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "knotmm.cli", "run", str(run_file), "--no-progress"],
+        stdout=subprocess.DEVNULL,
+        stderr=stderr,
+        text=True,
+        env=dict(os.environ, PYTHONUNBUFFERED="1"),
+    )
+    deadline = time.monotonic() + 120
+    while _checkpoints_written(directory) < checkpoints and proc.poll() is None:
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    return proc
+
+
 @pytest.mark.parametrize(
     ("sig", "kill_after_checkpoints"),
     [(signal.SIGKILL, 1), (signal.SIGKILL, 4), (signal.SIGKILL, 9), (signal.SIGTERM, 3)],
@@ -63,17 +79,7 @@ def _checkpoints_written(directory: Path) -> int:
 def test_kill_and_resume_equals_uninterrupted(tmp_path, reference, sig, kill_after_checkpoints):
     directory = tmp_path / "run"
     run_file = _write_run_file(tmp_path / "run.toml", directory)
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "knotmm.cli", "run", str(run_file), "--no-progress"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        env=env,
-    )
-    deadline = time.monotonic() + 120
-    while _checkpoints_written(directory) < kill_after_checkpoints and proc.poll() is None:
-        assert time.monotonic() < deadline
-        time.sleep(0.01)
+    proc = _start_run(run_file, directory, kill_after_checkpoints, subprocess.DEVNULL)
     proc.send_signal(sig)
     proc.wait()
     if proc.returncode == 0:  # finished before the kill: nothing to resume
@@ -114,16 +120,7 @@ def test_ctrl_c_checkpoints_the_state_it_stopped_at(tmp_path, reference):
     run_file = _write_run_file(tmp_path / "run.toml", directory)
     text = run_file.read_text().replace("topology_check_interval = 0.0", "")
     run_file.write_text(text.replace("[run]\n", "[run]\ntopology_check_interval = 0.5\n"))
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "knotmm.cli", "run", str(run_file), "--no-progress"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    deadline = time.monotonic() + 120
-    while _checkpoints_written(directory) < 3 and proc.poll() is None:
-        assert time.monotonic() < deadline
-        time.sleep(0.01)
+    proc = _start_run(run_file, directory, 3, subprocess.PIPE)
     time.sleep(0.13)  # somewhere between two checkpoints
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
