@@ -1,7 +1,8 @@
 """Where OpenMM's time goes in one force evaluation, and the floor it puts under a full step.
 
 For a T(2,3) of N beads on the platform a run uses (CPU, one thread), times
-``Context.getState(getForces=True)`` for
+``Context.setPositions`` + ``Context.getState(getForces=True)`` (new positions each call, as
+in a run) for
 
 * a System with no forces at all (the platform's fixed cost per call),
 * a System with each of knotmm's four forces alone,
@@ -89,7 +90,17 @@ def costs(n, repeats, inner, threads=1):
     a = contexts["knotmm (all four)"].getState(getForces=True).getForces(asNumpy=True)._value
     b = contexts["all four, HarmonicAngleForce"].getState(getForces=True)
     deviation = float(np.abs(a - b.getForces(asNumpy=True)._value).max())
-    calls = {name: (lambda c=c: c.getState(getForces=True)) for name, c in contexts.items()}
+    # New positions every call, as in a run (the CPU platform redoes its neighbour list and
+    # float copies after setPositions; the same positions again would skip that work).
+    jitter = [x + 1e-6 * k for k in range(2)]
+    toggle = [0]
+
+    def call(context):
+        toggle[0] ^= 1
+        context.setPositions(jitter[toggle[0]])
+        context.getState(getForces=True)
+
+    calls = {name: (lambda c=c: call(c)) for name, c in contexts.items()}
     f = a.copy()
     calls["RPY mobility loop"] = lambda: rpy_velocities(x, f)
     samples = {name: [] for name in calls}

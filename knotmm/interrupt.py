@@ -24,7 +24,13 @@ import sys
 import threading
 from contextlib import contextmanager
 
-__all__ = ["StopRequested", "raise_if_requested", "stop_between_steps", "stop_requested"]
+__all__ = [
+    "StopRequested",
+    "raise_if_requested",
+    "request_stop",
+    "stop_between_steps",
+    "stop_requested",
+]
 
 _requested = threading.Event()
 
@@ -39,6 +45,11 @@ class StopRequested(KeyboardInterrupt):
 def stop_requested() -> bool:
     """Whether a signal has asked the running simulation to stop at its next step boundary."""
     return _requested.is_set()
+
+
+def request_stop() -> None:
+    """Ask the running simulation to stop at its next step boundary (for signal handlers)."""
+    _requested.set()
 
 
 def raise_if_requested() -> None:

@@ -215,6 +215,7 @@ class KnotTypeWatch(_TimeScheduled):
         self.on_change = on_change
         self.changes: list[tuple[float, str | None, str | None]] = []
         self.checks = 0
+        self.dropped = 0
 
     def report(self, simulation, state) -> None:
         self._advance()
@@ -256,14 +257,21 @@ class KnotTypeWatch(_TimeScheduled):
 
             logging.getLogger(__name__).warning(message)
 
-    def close(self) -> None:
+    def close(self, wait: bool = True) -> None:
+        """Judge the checks still under way and stop the worker.
+
+        ``wait=False`` (a run being interrupted, which must end promptly) judges only the
+        checks already finished and drops the others; :attr:`dropped` counts them.
+        """
         from knotmm.errors import KnotTypeChanged
 
         try:
-            self.collect(wait=True)
+            self.collect(wait=wait)
         except KnotTypeChanged:
             pass  # recorded in self.changes; the run is ending anyway
         finally:
+            self.dropped += len(self._pending)
+            self._pending.clear()
             closer = getattr(self._identify, "close", None)
             if closer is not None:
                 closer()

@@ -21,7 +21,6 @@ and an existing run directory is never overwritten without ``overwrite=True``.
 
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import logging
 import math
@@ -381,18 +380,19 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
         # Stopped between two steps (knotmm.interrupt): save this exact state, so that a
         # resumed run goes on from here rather than from the last periodic checkpoint.
         status, message = "interrupted", "interrupted by the user"
-        if watch is not None:
-            with contextlib.suppress(Exception):  # record checks already under way
-                watch.collect(wait=True)
-        ckpt.save_now(sim)
+        ckpt.save_now(sim)  # first: knot checks under way are collected when closing
         raise
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"
         raise
     finally:
-        for r in (dcd, obs, bar, watch):
-            if r is not None:
-                r.close()
+        for r in (dcd, obs, bar):
+            r.close()
+        if watch is not None:
+            # an interrupted run must end promptly (a sweep repeats its stop signal every
+            # second): checks still under way are dropped; the next one after resume sees
+            # any change they would have seen
+            watch.close(wait=status != "interrupted")
         wall = time.perf_counter() - wall0
         velocity = (z0 - float(sim.positions[:, 2].mean())) / sim.time if sim.time > 0 else 0.0
         result = RunResult(
@@ -421,6 +421,10 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
         if watch is not None:
             facts["knot_type"] = watch.current
             facts["knot_type_checks"] = int(facts.get("knot_type_checks", 0)) + watch.checks
+            if watch.dropped:
+                facts["knot_type_checks_dropped"] = (
+                    int(facts.get("knot_type_checks_dropped", 0)) + watch.dropped
+                )
             changes = list(facts.get("knot_type_changes", []))
             changes += [{"time": t, "from": str(a), "to": str(b)} for t, a, b in watch.changes]
             facts["knot_type_changes"] = changes

@@ -755,11 +755,22 @@ _INTERRUPT_EXIT = 130
 
 def _on_stop(signum, frame):  # pragma: no cover - runs in the worker processes
     """SIGINT in a local worker: interrupt the point (its run records ``interrupted``) and
-    leave; an idle worker leaves at once."""
+    leave; an idle worker leaves at once.
+
+    The first SIGINT lets a running simulation finish its step and checkpoint that state
+    (:mod:`knotmm.interrupt`); the parent repeats the signal every second, and a repeat
+    interrupts at once (a point being analysed, or a step that takes that long).
+    """
+    from knotmm.interrupt import request_stop
+
     global _STOPPING
+    first = not _STOPPING
     _STOPPING = True
     if not _RUNNING:
         _leave()
+    if first:
+        request_stop()
+        return
     raise KeyboardInterrupt
 
 

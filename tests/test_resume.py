@@ -120,8 +120,8 @@ def test_ctrl_c_checkpoints_the_state_it_stopped_at(tmp_path, reference):
     run_file = _write_run_file(tmp_path / "run.toml", directory)
     text = run_file.read_text().replace("topology_check_interval = 0.0", "")
     run_file.write_text(text.replace("[run]\n", "[run]\ntopology_check_interval = 0.5\n"))
-    proc = _start_run(run_file, directory, 3, subprocess.PIPE)
-    time.sleep(0.13)  # somewhere between two checkpoints
+    proc = _start_run(run_file, directory, 2, subprocess.PIPE)
+    time.sleep(0.05)  # somewhere between two checkpoints
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     if proc.returncode == 0:

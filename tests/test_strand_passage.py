@@ -157,6 +157,37 @@ def test_knot_watch_records_and_stops_on_a_change():
         stop.report(sim, None)
 
 
+def test_knot_watch_closing_without_waiting_drops_unfinished_checks():
+    """An interrupted run ends at once: finished checks are judged, unfinished ones dropped."""
+    from concurrent.futures import Future
+
+    from knotmm.reporters import KnotTypeWatch
+
+    class Worker:
+        def __init__(self):
+            self.futures = []
+            self.closed = False
+
+        def submit(self, positions):
+            self.futures.append(Future())
+            return self.futures[-1]
+
+        def close(self):
+            self.closed = True
+
+    worker = Worker()
+    watch = KnotTypeWatch(10.0, expected="+3_1", identify=worker, first_index=1)
+    sim = _FakeSim()
+    for t in (10.0, 20.0, 30.0):
+        sim.time = t
+        watch.report(sim, None)
+    worker.futures[0].set_result("-3_1")  # the first check is back, the others are not
+    watch.close(wait=False)
+    assert worker.closed
+    assert watch.changes == [(10.0, "+3_1", "-3_1")]
+    assert (watch.checks, watch.dropped) == (1, 2)
+
+
 def test_isolated_identifier_names_a_trefoil_and_its_mirror():
     from knotmm.knot_worker import IsolatedKnotIdentifier
 

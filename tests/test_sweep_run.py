@@ -10,9 +10,11 @@ import os
 import shutil
 import sys
 
+import numpy as np
 import pytest
 
 from knotmm.analysis import load_run
+from knotmm.config import read_toml
 from knotmm.errors import ConfigError
 from knotmm.sweep import Sweep, _plan, read_summary, run_point, run_sweep
 
@@ -210,6 +212,14 @@ def test_ctrl_c_then_resume_from_the_command_line(tmp_path):
     rows = read_summary(out)
     assert "finished" in [r["status"] for r in rows]
     assert "pending" in [r["status"] for r in rows]
+    # a point stopped while simulating finished its step and checkpointed that state
+    stopped = []
+    for run_toml in out.glob("*/run.toml"):
+        facts = read_toml(run_toml)["knotmm"]
+        if facts.get("status") == "interrupted":
+            with np.load(run_toml.parent / "checkpoint.npz") as data:
+                stopped.append((float(data["time"]), facts["time_reached"]))
+    assert all(a == b for a, b in stopped), stopped
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert [r["status"] for r in read_summary(out)] == ["finished"] * 6
