@@ -109,3 +109,13 @@ def test_plot_functions_return_axes(run):
         assert len(analysis.plot_time_series(result)) == 4
     finally:
         plt.close("all")
+
+
+def test_default_plot_beads_are_not_symmetric_images_of_each_other():
+    """In a T(2,3) of 90 beads, beads 30 apart trace the same curves: pick within 30."""
+    from knotmm.analysis.plots import _default_beads
+
+    assert _default_beads(90, 3, q=3) == [0, 10, 20]
+    assert _default_beads(90, 6, q=3) == [0, 5, 10, 15, 20, 25]
+    assert _default_beads(91, 3, q=3) == [0, 30, 61]  # no exact symmetry: whole chain
+    assert _default_beads(90, 3, q=None) == [0, 30, 60]

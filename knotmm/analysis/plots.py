@@ -69,8 +69,16 @@ def _shade_window(ax, result: AnalysisResult, labels: bool = False) -> None:
         ax.axvline(kt.changed_at, color="tab:purple", ls=":", lw=1.5, label=text)
 
 
-def _default_beads(n: int, count: int = 3) -> list[int]:
-    return [int(round(k * n / count)) % n for k in range(count)]
+def _default_beads(n: int, count: int = 3, q: int | None = None) -> list[int]:
+    """``count`` beads spread over one symmetric sector of the chain.
+
+    A T(p, q) template has q-fold symmetry about the vertical axis: beads ``n / q`` apart
+    trace identical rho and z curves, so beads spread over the whole chain (0, 30, 60 for
+    N = 90, q = 3) would draw one curve three times. Spread over ``n / q`` beads instead,
+    they show ``count`` different phases of the swirl.
+    """
+    sector = n // q if q and q > 1 and n % q == 0 else n
+    return sorted({int(round(k * sector / count)) % n for k in range(count)})
 
 
 def plot_com_height(result: AnalysisResult, ax=None):
@@ -116,7 +124,8 @@ def plot_bead_coordinate(result: AnalysisResult, which: str = "rho", beads=None,
         ``rho`` (d, with the mean over beads in black), ``alpha`` (rad, unwrapped) or
         ``z`` (d, above the centre of mass).
     beads : sequence of int, optional
-        Default: three beads evenly spaced along the chain.
+        Default: three beads evenly spaced over one symmetric sector (``n / q`` beads) of
+        the chain, so that they show different phases of the swirl.
     ax : matplotlib Axes, optional
 
     Returns
@@ -128,7 +137,7 @@ def plot_bead_coordinate(result: AnalysisResult, which: str = "rho", beads=None,
     ax = ax or _new_axes()
     t = result.data.times
     values = getattr(result.coords, which)
-    beads = _default_beads(values.shape[1]) if beads is None else list(beads)
+    beads = _default_beads(values.shape[1], 3, result.q) if beads is None else list(beads)
     _shade_window(ax, result)
     for b in beads:
         ax.plot(t, values[:, b], lw=0.9, label=f"bead {b}")
@@ -236,7 +245,7 @@ def plot_collapse(
         Must hold a vortex-knot fit.
     ax : matplotlib Axes, optional
     beads : sequence of int, optional
-        Beads shown; default six evenly spaced along the chain.
+        Beads shown; default six evenly spaced over one symmetric sector (``n / q`` beads).
     periods : float
         Swirl periods shown from the window start.
     max_markers : int
@@ -258,7 +267,7 @@ def plot_collapse(
         fit, result.data.times[sel], c.rho[sel], c.alpha[sel], result.data.positions[sel, :, 2]
     )
     n = sc.cycle.shape[1]
-    beads = _default_beads(n, 6) if beads is None else list(beads)
+    beads = _default_beads(n, 6, result.q) if beads is None else list(beads)
     start = np.floor(sc.cycle[0, beads].min())
     x = sc.cycle[:, beads] - start
     shown = x[:, 0] <= periods + 1
