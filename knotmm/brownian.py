@@ -675,6 +675,9 @@ def make_brownian_integrator(
 def integrator_from_config(cfg) -> Integrator:
     """The integrator a run file asks for, deterministic or Brownian.
 
+    ``run.integrator = "auto"`` and an unset ``run.timestep`` are resolved first
+    (:func:`knotmm.config.resolve_stepping`: rk23, or ito_heun with 0.002 at finite Pe).
+
     * ``run.integrator`` a Brownian one (``euler_maruyama``, ``ito_heun``): that
       integrator with the fixed ``run.timestep``, ``kT = 1 / run.peclet`` (no noise at
       ``Pe = inf``), ``run.seed``, ``run.noise`` and ``run.lanczos_tolerance``.
@@ -692,11 +695,12 @@ def integrator_from_config(cfg) -> Integrator:
     -------
     knotmm.integrators.Integrator
     """
-    name = cfg["run.integrator"]
+    from knotmm.config import resolve_stepping
+
+    name, timestep = resolve_stepping(cfg)
     peclet = float(cfg["run.peclet"])
     thermal_energy(peclet)  # checks the range
     if name in BROWNIAN_INTEGRATORS:
-        timestep = float(cfg["run.timestep"])
         if math.isfinite(peclet) and timestep > 0.01:
             log.warning(
                 "run.timestep = %g with run.peclet = %g: above ~0.01 tau_d the stiff bond "
@@ -721,7 +725,7 @@ def integrator_from_config(cfg) -> Integrator:
     try:
         return make_integrator(
             name,
-            cfg["run.timestep"],
+            timestep,
             cfg["run.tolerance"],
             cfg["run.max_timestep"],
             cfg["run.min_timestep"],

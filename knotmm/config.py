@@ -75,6 +75,42 @@ class Key:
     allow_inf: bool = False
 
 
+#: Integrators of the stochastic (finite Peclet) equation; the others are deterministic.
+BROWNIAN_INTEGRATOR_NAMES = ("ito_heun", "euler_maruyama")
+#: ``run.timestep`` when none is given: deterministic runs (the first step of an adaptive
+#: integrator) and Brownian ones (see :mod:`knotmm.brownian`, "Step size").
+DEFAULT_TIMESTEP = 0.01
+DEFAULT_BROWNIAN_TIMESTEP = 0.002
+
+
+def resolve_stepping(cfg) -> tuple[str, float]:
+    """The integrator and step a run uses: ``run.integrator`` and ``run.timestep`` resolved.
+
+    ``integrator = "auto"`` is ``rk23`` for deterministic runs (``run.peclet = inf``) and
+    ``ito_heun`` at a finite Peclet number; an unset ``timestep`` is
+    :data:`DEFAULT_BROWNIAN_TIMESTEP` for a Brownian integrator at finite Pe, else
+    :data:`DEFAULT_TIMESTEP`. So setting ``run.peclet`` alone gives a sound Brownian run.
+
+    Parameters
+    ----------
+    cfg : RunConfig (or a mapping with the same dotted keys)
+
+    Returns
+    -------
+    (str, float)
+        Integrator name and step in tau_d.
+    """
+    brownian = math.isfinite(float(cfg["run.peclet"]))
+    name = cfg["run.integrator"]
+    if name == "auto":
+        name = "ito_heun" if brownian else "rk23"
+    timestep = cfg["run.timestep"]
+    if timestep is None:
+        stochastic = brownian and name in BROWNIAN_INTEGRATOR_NAMES
+        timestep = DEFAULT_BROWNIAN_TIMESTEP if stochastic else DEFAULT_TIMESTEP
+    return name, float(timestep)
+
+
 #: Every key a run file may hold, by table. Defaults are the study's parameters.
 SCHEMA: dict[str, dict[str, Key]] = {
     "knot": {
@@ -116,14 +152,17 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "run": {
         "duration": Key("float", 200.0, "simulated time, in tau_d", 0.0, None, True),
         "integrator": Key(
-            "str", "rk23",
-            "time stepper: rk23 (adaptive, default), rkc2 (adaptive, for very stiff chains), "
-            "heun, midpoint, euler; finite run.peclet: ito_heun or euler_maruyama (fixed step)",
-            choices=("rk23", "rkc2", "heun", "midpoint", "euler", "ito_heun", "euler_maruyama"),
+            "str", "auto",
+            "time stepper: auto (default: rk23 at run.peclet = inf, ito_heun at finite Pe), "
+            "rk23 (adaptive), rkc2 (adaptive, for very stiff chains), heun, midpoint, euler; "
+            "finite run.peclet: ito_heun or euler_maruyama (fixed step)",
+            choices=(
+                "auto", "rk23", "rkc2", "heun", "midpoint", "euler", "ito_heun", "euler_maruyama",
+            ),
         ),
         "timestep": Key(
-            "float", 0.01, "step in tau_d (fixed-step and Brownian integrators); the first "
-            "step of an adaptive one",
+            "float", None, "step in tau_d (fixed-step and Brownian integrators); the first "
+            "step of an adaptive one; default 0.01, or 0.002 for Brownian dynamics",
             0.0, None, True,
         ),
         "tolerance": Key(

@@ -33,7 +33,7 @@ import numpy as np
 
 from knotmm import __version__
 from knotmm.atomic import write_text_atomic as write_atomic
-from knotmm.config import RunConfig, read_toml
+from knotmm.config import RunConfig, read_toml, resolve_stepping
 from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault, TrajectoryFileError
 from knotmm.reporters import DCDReporter, ObservablesReporter, ProgressReporter
 from knotmm.simulation import Simulation
@@ -229,6 +229,8 @@ def run(
 
     wall0 = time.perf_counter()
     directory = Path(directory if directory is not None else cfg["output.directory"])
+    name, timestep = resolve_stepping(cfg)  # run.toml records what is used, not "auto"
+    cfg = cfg.replace({"run.integrator": name, "run.timestep": timestep})
     integrator = integrator_from_config(cfg)  # checks integrator against run.peclet
     template = build_template(cfg)
     if template.resolved:

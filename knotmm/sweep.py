@@ -88,7 +88,7 @@ from typing import Any
 
 import numpy as np
 
-from knotmm.config import RunConfig, read_toml, split_key
+from knotmm.config import RunConfig, read_toml, resolve_stepping, split_key
 from knotmm.errors import ConfigError, RunDirectoryError
 
 __all__ = [
@@ -810,6 +810,9 @@ def _stored_config_matches(point: SweepPoint, directory: Path) -> bool:
     except ConfigError:
         return False
     wanted = point.config.to_dict(include_unset=False)
+    # a run file records the integrator and step it used ("auto" and an unset step resolved)
+    name, timestep = resolve_stepping(point.config)
+    wanted["run"].update(integrator=name, timestep=timestep)
     for table, keys in wanted.items():
         for key, value in keys.items():
             if table == "output" and key == "directory":
