@@ -719,8 +719,8 @@ def integrator_from_config(cfg) -> Integrator:
     if math.isfinite(peclet):
         raise ConfigError(
             f"run.integrator = {name!r} cannot integrate Brownian dynamics (run.peclet = "
-            f'{peclet:g}): use run.integrator = "ito_heun" (or "euler_maruyama") with a '
-            f"fixed run.timestep such as 0.002"
+            f'{peclet:g}): leave run.integrator unset ("auto" picks ito_heun, step 0.002) or '
+            f'use "ito_heun" / "euler_maruyama" with a fixed run.timestep such as 0.002'
         )
     try:
         return make_integrator(
