@@ -382,7 +382,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
         # Stopped between two steps (knotmm.interrupt): save this exact state, so that a
         # resumed run goes on from here rather than from the last periodic checkpoint.
         status, message = "interrupted", "interrupted by the user"
-        ckpt.save_now(sim)  # first: knot checks under way are collected when closing
+        ckpt.save_now(sim)  # knot checks still under way are dropped when closing, below
         raise
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"
