@@ -110,6 +110,9 @@ def main(argv=None):
         "--inner", type=int, default=0, help="calls per timing (default: about 20 ms worth)"
     )
     parser.add_argument("--threads", type=int, default=1, help="CPU platform threads")
+    parser.add_argument(
+        "--mobility-threads", type=int, default=2, help="threads of the threaded RPY loop"
+    )
     parser.add_argument("--duration", type=float, default=500.0, help="tau_d of the CLI run")
     parser.add_argument("--runs", type=int, default=3, help="CLI runs (median); 0 skips")
     parser.add_argument(
@@ -149,6 +152,20 @@ def main(argv=None):
                 f"{c['velocity'] * 1e6:>10.1f} {c['velocity'] / c['mobility']:>8.2f}",
                 flush=True,
             )
+    print()
+    print(f"RPY pair loop on {args.mobility_threads} threads (run.mobility_threads), "
+          "microseconds per call")
+    for n in args.beads:
+        x = torus_knot(2, 3, n)
+        f = np.random.default_rng(n).normal(size=x.shape)
+        inner = args.inner or max(5, int(20000 / max(n, 1) ** 1.2))
+        one = _median_time(lambda x=x, f=f: rpy_velocities(x, f), args.repeats, inner)
+        many = _median_time(
+            lambda x=x, f=f: rpy_velocities(x, f, threads=args.mobility_threads),
+            args.repeats,
+            inner,
+        )
+        print(f"{n:>5} {one * 1e6:>10.1f} -> {many * 1e6:>10.1f}  ({one / many:.2f}x)")
     print()
     print("writhe (numba double sum, used by analysis and the templates), ms per call")
     for n in args.beads:

@@ -188,6 +188,7 @@ def _make_simulation(cfg: RunConfig, positions, integrator) -> Simulation:
         platform=cfg["run.platform"],
         threads=cfg["run.threads"],
         max_bond_length=cfg["run.max_bond_length"],
+        mobility_threads=cfg["run.mobility_threads"],
     )
 
 

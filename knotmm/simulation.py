@@ -96,6 +96,9 @@ class Simulation:
         Threads of the CPU platform.
     max_bond_length : float
         A bond longer than this (in d) stops the run with :class:`SimulationFault`.
+    mobility_threads : int
+        Threads of the RPY pair loop (:func:`knotmm.mobility.rpy_velocities`); the
+        trajectory does not depend on it.
 
     Attributes
     ----------
@@ -116,8 +119,10 @@ class Simulation:
         platform: str = "auto",
         threads: int = 1,
         max_bond_length: float = 3.0,
+        mobility_threads: int = 1,
     ):
         pos = np.array(positions, dtype=np.float64)
+        self.mobility_threads = int(mobility_threads)
         self.model = ChainModel() if model is None else model
         self.system = build_system(pos, self.model)
         self.topology = build_topology(pos.shape[0])
@@ -155,7 +160,7 @@ class Simulation:
     def velocity(self, positions: np.ndarray) -> np.ndarray:
         """Bead velocities ``mu(r) F(r)``, shape (n_beads, 3), in d/tau_d."""
         self.n_evaluations += 1
-        return rpy_velocities(positions, self.forces(positions))
+        return rpy_velocities(positions, self.forces(positions), threads=self.mobility_threads)
 
     def energies(self, positions: np.ndarray | None = None) -> dict[str, float]:
         """Energy of each term (``bond``, ``bend``, ``steric``, ``gravity``) and ``total``.

@@ -215,3 +215,40 @@ def test_one_bead_pulled_drags_its_neighbour():
         want = 3 / (4 * r) - 1 / (8 * r**3) if r >= 1 else 1 - 3 * r / 8
         assert v[1, 0] == pytest.approx(want, rel=1e-13)
         assert v[0, 0] == pytest.approx(1.0, rel=1e-15)
+
+
+@pytest.mark.parametrize("n", [7, 150])
+def test_threaded_pair_loop_gives_the_same_velocities_bit_for_bit(rng, n):
+    x = rng.uniform(0, 6.0, size=(n, 3))
+    f = rng.normal(size=(n, 3))
+    import numba
+
+    from knotmm.mobility import _threads_for
+
+    assert _threads_for(2) == min(2, numba.config.NUMBA_NUM_THREADS)  # main thread: used
+    serial = rpy_velocities(x, f)
+    np.testing.assert_array_equal(rpy_velocities(x, f, threads=2), serial)
+    np.testing.assert_array_equal(rpy_velocities(x, f, threads=64), serial)  # capped
+    want = rm.rpy_velocities(x, f)
+    np.testing.assert_allclose(serial, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+
+
+def test_threaded_pair_loop_falls_back_to_one_thread_off_the_main_thread(rng):
+    """numba's default threading layer may not be entered from two threads at once."""
+    import threading
+
+    from knotmm.mobility import _threads_for
+
+    x = rng.uniform(0, 6.0, size=(50, 3))
+    f = rng.normal(size=(50, 3))
+    seen = {}
+
+    def work():
+        seen["threads"] = _threads_for(2)
+        seen["v"] = rpy_velocities(x, f, threads=2)
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    worker.join()
+    assert seen["threads"] == 1
+    np.testing.assert_array_equal(seen["v"], rpy_velocities(x, f))

@@ -270,3 +270,12 @@ def test_set_positions_forgets_the_cached_velocity(trefoil40, rng):
         got, dt2 = sim.integrator.step(sim.velocity, y)
         assert dt == dt2
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-13)
+
+
+def test_mobility_threads_do_not_change_the_trajectory(trefoil40):
+    one = Simulation(trefoil40)
+    two = Simulation(trefoil40, mobility_threads=2)
+    one.run(2.0)
+    two.run(2.0)
+    assert one.currentStep == two.currentStep
+    np.testing.assert_array_equal(two.positions, one.positions)
