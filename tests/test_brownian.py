@@ -402,6 +402,14 @@ def test_config_keys():
         RunConfig.from_dict({"run": {"lanczos_tolerance": 0.0}})
 
 
+def test_config_knows_the_brownian_integrators():
+    from knotmm.brownian import BROWNIAN_INTEGRATORS
+    from knotmm.config import BROWNIAN_INTEGRATOR_NAMES, SCHEMA
+
+    assert set(BROWNIAN_INTEGRATOR_NAMES) == set(BROWNIAN_INTEGRATORS)
+    assert set(BROWNIAN_INTEGRATORS) <= set(SCHEMA["run"]["integrator"].choices)
+
+
 def test_integrator_from_config():
     cfg = RunConfig.from_dict(
         {
