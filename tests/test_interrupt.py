@@ -2,6 +2,7 @@
 
 import os
 import signal
+import time
 
 import numpy as np
 import pytest
@@ -15,13 +16,23 @@ from knotmm.interrupt import (
 from knotmm.simulation import Simulation
 
 
+def _signal_self(sig, until=stop_requested):
+    """Send ``sig`` to this process and give its Python handler time to run (it runs in the
+    main thread at the next check, not necessarily inside ``os.kill``)."""
+    os.kill(os.getpid(), sig)
+    for _ in range(200):
+        if until():
+            return
+        time.sleep(0.005)
+
+
 def test_first_signal_asks_second_stops_at_once_and_handlers_come_back(capsys):
     before = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
     with stop_between_steps():
-        os.kill(os.getpid(), signal.SIGTERM)
+        _signal_self(signal.SIGTERM)
         assert stop_requested()
         with pytest.raises(KeyboardInterrupt) as info:
-            os.kill(os.getpid(), signal.SIGINT)
+            _signal_self(signal.SIGINT, until=lambda: False)
         assert not isinstance(info.value, StopRequested)  # a plain, immediate interrupt
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
     assert not stop_requested()
@@ -31,7 +42,7 @@ def test_first_signal_asks_second_stops_at_once_and_handlers_come_back(capsys):
 def test_raise_if_requested_raises_once():
     raise_if_requested()  # nothing asked: nothing raised
     with stop_between_steps():
-        os.kill(os.getpid(), signal.SIGINT)
+        _signal_self(signal.SIGINT)
         with pytest.raises(StopRequested):
             raise_if_requested()
         raise_if_requested()  # the request is used up
