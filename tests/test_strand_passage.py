@@ -202,9 +202,11 @@ def test_isolated_identifier_names_a_trefoil_and_its_mirror():
 def test_identifier_worker_exits_when_its_parent_is_killed(tmp_path):
     """A run killed with SIGKILL must not leave its knot-identification worker behind."""
     import os
+    import queue
     import signal
     import subprocess
     import sys
+    import threading
     import time
 
     script = tmp_path / "parent.py"
@@ -218,11 +220,18 @@ def test_identifier_worker_exits_when_its_parent_is_killed(tmp_path):
         "    print(list(ident._pool._processes)[0], flush=True)\n"
         "    time.sleep(60)\n"
     )
-    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    # stderr: the killed parent's semaphore tracker complains about what it leaves behind
+    parent = subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
+    )
+    lines = queue.Queue()
+    threading.Thread(
+        target=lambda: [lines.put(line) for line in parent.stdout], daemon=True
+    ).start()
     try:
-        assert parent.stdout.readline().strip() == "+3_1"
+        assert lines.get(timeout=120).strip() == "+3_1"
         # One line per print, flushed: the pid arrives whole (a file could be read half written).
-        worker = int(parent.stdout.readline())
+        worker = int(lines.get(timeout=60))
     finally:
         parent.send_signal(signal.SIGKILL)
         parent.wait()
