@@ -38,10 +38,10 @@ import time
 
 import numpy as np
 
-from knotmm.knots import writhe
-from knotmm.mobility import rpy_velocities
-from knotmm.simulation import Simulation
-from knotmm.templates import torus_knot
+from knotmm.dynamics.mobility import rpy_velocities
+from knotmm.engine.simulation import Simulation
+from knotmm.knots.identify import writhe
+from knotmm.shapes.templates import torus_knot
 
 
 def _median_time(fn, repeats, inner):
@@ -75,7 +75,7 @@ def evaluation_costs(n, platform, repeats, inner, threads=1):
 def cli_run_time(duration, runs, extra=()):
     """Median wall time (s) of `knotmm run --duration D` in a subprocess, and its summary."""
     exe = shutil.which("knotmm")
-    cmd = [exe] if exe else [sys.executable, "-m", "knotmm.cli"]
+    cmd = [exe] if exe else [sys.executable, "-m", "knotmm.cli.main"]
     times, summary = [], ""
     for _ in range(runs):
         out = tempfile.mkdtemp(prefix="knotmm-bench-")

@@ -30,9 +30,9 @@ import time
 import numpy as np
 import openmm
 
-from knotmm.mobility import rpy_velocities
-from knotmm.system import ChainModel, bend_force, bond_force, gravity_force, steric_force
-from knotmm.templates import torus_knot
+from knotmm.dynamics.mobility import rpy_velocities
+from knotmm.model.system import ChainModel, bend_force, bond_force, gravity_force, steric_force
+from knotmm.shapes.templates import torus_knot
 
 
 def _per_call(fn, inner):

@@ -29,11 +29,11 @@ import time
 
 import numpy as np
 
+from knotmm.dynamics.deterministic import make_integrator
+from knotmm.engine.simulation import Simulation
 from knotmm.errors import SimulationFault
-from knotmm.integrators import make_integrator
-from knotmm.simulation import Simulation
-from knotmm.system import ChainModel
-from knotmm.templates import torus_knot
+from knotmm.model.system import ChainModel
+from knotmm.shapes.templates import torus_knot
 
 
 def is_stable(x0, name, dt, duration, max_bond, platform):

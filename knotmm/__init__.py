@@ -1,10 +1,18 @@
 """knotmm: knotted flexible filaments sedimenting at low Reynolds number.
 
-OpenMM computes the chain's forces; a Python-side overdamped integrator applies the
+OpenMM computes the chain's forces; an overdamped integrator applies the
 Rotne-Prager-Yamakawa mobility; mdtraj handles trajectory files. Everything in the API is
-in model units: bead diameter ``d``, force ``F0`` (gravity on one bead), time ``tau_d``.
+in model units: bead diameter ``d``, force ``F0`` (gravity on one bead), time ``tau_d``
+(``docs/model.md``). The package layout follows the flow of ``docs/architecture.md``.
+
+The public API (stable names)::
+
+    from knotmm import RunConfig, run, resume, build_system, Simulation, load_run, analyze_run
+
+Each name is imported on first use, so ``import knotmm`` stays cheap.
 """
 
+from importlib import import_module
 from importlib.metadata import PackageNotFoundError, version
 
 try:
@@ -12,4 +20,28 @@ try:
 except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0.0.0+unknown"
 
-__all__ = ["__version__"]
+#: public name -> the module that owns it
+_PUBLIC = {
+    "RunConfig": "knotmm.config",
+    "run": "knotmm.workflow",
+    "resume": "knotmm.workflow",
+    "build_system": "knotmm.model.system",
+    "Simulation": "knotmm.engine.simulation",
+    "load_run": "knotmm.io.run_data",
+    "analyze_run": "knotmm.analysis.core",
+}
+
+__all__ = ["__version__", *_PUBLIC]
+
+
+def __getattr__(name: str):
+    owner = _PUBLIC.get(name)
+    if owner is None:
+        raise AttributeError(f"module 'knotmm' has no attribute {name!r}")
+    value = getattr(import_module(owner), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))

@@ -78,7 +78,7 @@ class Key:
 #: Integrators of the stochastic (finite Peclet) equation; the others are deterministic.
 BROWNIAN_INTEGRATOR_NAMES = ("ito_heun", "euler_maruyama")
 #: ``run.timestep`` when none is given: deterministic runs (the first step of an adaptive
-#: integrator) and Brownian ones (see :mod:`knotmm.brownian`, "Step size").
+#: integrator) and Brownian ones (see :mod:`knotmm.dynamics.brownian`, "Step size").
 DEFAULT_TIMESTEP = 0.01
 DEFAULT_BROWNIAN_TIMESTEP = 0.002
 

@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import settings
+
+# Test modules live in folders that mirror the package; the shared reference model
+# (tests/reference_model.py) is imported by name from any of them.
+sys.path.insert(0, str(Path(__file__).parent))
 
 # Property-based tests draw the same examples on every run by default, so that CI cannot fail
 # by chance on code that did not change; HYPOTHESIS_PROFILE=explore draws fresh ones.
@@ -24,7 +30,7 @@ def rng():
 @pytest.fixture(scope="session")
 def trefoil40():
     """The T(2,3) template with 40 beads, in d (centred, bonds 0.6 d)."""
-    from knotmm.templates import torus_knot
+    from knotmm.shapes.templates import torus_knot
 
     return torus_knot(2, 3, 40)
 
@@ -32,6 +38,6 @@ def trefoil40():
 @pytest.fixture(scope="session")
 def trefoil90():
     """The T(2,3) template with 90 beads (the default run's start), in d."""
-    from knotmm.templates import torus_knot
+    from knotmm.shapes.templates import torus_knot
 
     return torus_knot(2, 3, 90)

@@ -5,7 +5,7 @@ Usage: python examples/brownian_pe2/flips.py RUN_DIR [--band DEG] [--min-winding
 Prints the tilt statistics and every flip (a crossing of 90 degrees by the signed tilt,
 with hysteresis, counted only in frames where the chain still circulates about its axis)
 and writes ``tilt.csv`` (time, signed tilt, inclination, planar winding) into RUN_DIR.
-See :mod:`knotmm.tilt` for the definitions.
+See :mod:`knotmm.analysis.tilt` for the definitions.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from knotmm.analysis.io import load_run
-from knotmm.tilt import tilt_analysis
+from knotmm.analysis.tilt import tilt_analysis
+from knotmm.io.run_data import load_run
 
 
 def main(argv=None) -> int:

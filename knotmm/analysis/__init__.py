@@ -12,7 +12,7 @@ Examples
 >>> result = analyze_run("runs/trefoil")                      # doctest: +SKIP
 >>> result.to_dict()["tau_swirl_over_tau_sed"]                # doctest: +SKIP
 
-Modules: :mod:`~knotmm.analysis.io` (loading), :mod:`~knotmm.analysis.window` (steady
+Modules: :mod:`~knotmm.io.run_data` (loading), :mod:`~knotmm.analysis.window` (steady
 window), :mod:`~knotmm.analysis.spectra`, :mod:`~knotmm.analysis.fit`,
 :mod:`~knotmm.analysis.topology`, :mod:`~knotmm.analysis.plots` (imported on first use),
 :mod:`~knotmm.analysis.synthetic` (trajectories with known answers).
@@ -21,11 +21,11 @@ window), :mod:`~knotmm.analysis.spectra`, :mod:`~knotmm.analysis.fit`,
 from knotmm.analysis.core import ANALYSIS_FILE, analyze, analyze_run
 from knotmm.analysis.fit import ScaledCoordinates, VortexFit, fit_vortex_knot, scaled_coordinates
 from knotmm.analysis.geometry import Cylindrical, cylindrical, winding_numbers
-from knotmm.analysis.io import RunData, load_run
 from knotmm.analysis.result import AnalysisResult, format_table
 from knotmm.analysis.spectra import SpectralPeak, Spectrum, rotation_spectrum, swirl_spectrum
 from knotmm.analysis.topology import KnotTypes, handedness, knot_types, rotation_sense
 from knotmm.analysis.window import Window, steady_window
+from knotmm.io.run_data import RunData, load_run
 
 _PLOTS = (
     "plot_com_height",

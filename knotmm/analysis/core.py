@@ -11,7 +11,6 @@ import numpy as np
 
 from knotmm.analysis.fit import fit_vortex_knot
 from knotmm.analysis.geometry import cylindrical, winding_numbers
-from knotmm.analysis.io import RunData, load_run
 from knotmm.analysis.result import AnalysisResult
 from knotmm.analysis.spectra import rotation_spectrum, swirl_spectrum
 from knotmm.analysis.topology import (
@@ -23,6 +22,7 @@ from knotmm.analysis.topology import (
 )
 from knotmm.analysis.window import steady_window
 from knotmm.errors import ConfigError
+from knotmm.io.run_data import RunData, load_run
 
 __all__ = ["analyze", "analyze_run", "ANALYSIS_FILE"]
 
@@ -205,7 +205,7 @@ def analyze(
     notes += kt.notes
 
     # tilt of the torus axis against gravity and flips, over the whole trajectory
-    from knotmm.tilt import tilt_analysis
+    from knotmm.analysis.tilt import tilt_analysis
 
     tilt = tilt_analysis(positions, times).to_dict() if len(times) >= 2 else None
 

@@ -12,10 +12,10 @@ import numpy as np
 
 from knotmm.analysis.fit import VortexFit
 from knotmm.analysis.geometry import Cylindrical
-from knotmm.analysis.io import RunData
 from knotmm.analysis.spectra import Spectrum
 from knotmm.analysis.topology import KnotTypes
 from knotmm.analysis.window import Window
+from knotmm.io.run_data import RunData
 
 __all__ = ["AnalysisResult", "format_table"]
 

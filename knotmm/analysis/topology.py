@@ -1,12 +1,12 @@
 """Handedness, rotation sense and knot type along a trajectory.
 
 * Handedness is the sign of the writhe (right-handed: positive), averaged over frames of
-  the window. Writhe comes from :func:`knotmm.knots.writhe`.
+  the window. Writhe comes from :func:`knotmm.knots.identify.writhe`.
 * Rotation sense is read from the signed rotation frequency about the vertical axis
   through the centre of mass, as seen from above with gravity pointing down (towards the
   viewer's back): a positive frequency (alpha increasing, x towards y) is
   ``"counterclockwise"``.
-* Knot type uses :func:`knotmm.knots.identify_knot` (topoly). The first change is found
+* Knot type uses :func:`knotmm.knots.identify.identify_knot` (topoly). The first change is found
   by sampling the trajectory evenly and bisecting between the last sample with the
   initial type and the first without it; a change that reverts between two samples can be
   missed.
@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from knotmm import knots
+from knotmm.knots import identify as knots
 
 __all__ = [
     "KnotTypes",
@@ -129,7 +129,8 @@ def knot_types(
     samples : int
         Evenly spaced frames checked over the whole trajectory before bisecting.
     identify : callable, optional
-        ``positions (n_beads, 3) -> str | None``; default :func:`knotmm.knots.identify_knot`.
+        ``positions (n_beads, 3) -> str | None``; default
+        :func:`knotmm.knots.identify.identify_knot`.
 
     Returns
     -------

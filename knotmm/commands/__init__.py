@@ -1,1 +1,0 @@
-"""Sub-commands of the ``knotmm`` command line, one module each."""

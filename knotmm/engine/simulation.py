@@ -1,0 +1,366 @@
+"""The run loop: an OpenMM ``Context`` computes forces, knotmm moves the beads.
+
+:class:`Simulation` mirrors ``openmm.app.Simulation`` closely enough that OpenMM's own
+reporters (``StateDataReporter``, ...) work with it: it has ``context``, ``system``,
+``topology``, ``integrator``, ``currentStep`` and ``reporters``, and schedules reporters that
+implement ``describeNextReport`` by steps, as OpenMM does. knotmm's own reporters are
+scheduled by simulated time instead (they implement ``next_report_time``), and the
+integrator lands exactly on their times, so frames are equally spaced even with adaptive
+steps. The loop, in the style of HOOMD-blue's ``Simulation.run``::
+
+    if write_at_start: time reporters report the current state (frame 0)
+    while time < end_time and step < end_step:
+        take one accepted integrator step, never past the next time report
+        check positions (finite) and bonds (below max_bond_length), else SimulationFault
+        step += 1; time += dt
+        reporters whose step or time has come report (Context step count and time updated)
+
+One "step" is one accepted step of the integrator, whatever its length. Positions are
+float64 and live in :attr:`Simulation.positions`; the Context only sees them, shifted by
+their centre of mass, when forces are needed (translation does not change the forces, and
+the shift keeps single-precision platforms precise however far the chain has fallen).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+import openmm
+from openmm import unit
+
+from knotmm.dynamics.deterministic import RK23, Integrator, StepSizeUnderflow
+from knotmm.dynamics.mobility import rpy_velocities
+from knotmm.engine.interrupt import raise_if_requested
+from knotmm.errors import ConfigError, SimulationFault
+from knotmm.model.system import (
+    FORCE_GROUPS,
+    ChainModel,
+    build_system,
+    build_topology,
+    ring_bonds,
+    site_positions,
+)
+
+__all__ = ["Simulation", "select_platform"]
+
+log = logging.getLogger(__name__)
+
+
+
+def select_platform(name: str, n_beads: int, threads: int = 1):
+    """Resolve a platform name to ``(openmm.Platform, properties)``.
+
+    ``"auto"`` takes the CPU platform with ``threads`` threads (1 by default: for the chain
+    sizes of the study the force kernels are too small to gain from threads); for
+    ``n_beads >= 2000`` it prefers CUDA, then OpenCL, when they are available.
+    """
+    available = [openmm.Platform.getPlatform(i).getName()
+                 for i in range(openmm.Platform.getNumPlatforms())]
+    if name == "auto":
+        name = "CPU" if "CPU" in available else "Reference"
+        if n_beads >= 2000:
+            for fast in ("CUDA", "OpenCL"):
+                if fast in available:
+                    name = fast
+                    break
+    if name not in available:
+        raise ConfigError(
+            f"run.platform = {name!r}: not available in this OpenMM installation "
+            f"(available: {', '.join(available)}); use run.platform = \"auto\""
+        )
+    platform = openmm.Platform.getPlatformByName(name)
+    properties = {}
+    if name == "CPU":
+        properties["Threads"] = str(int(threads))
+    elif name in ("CUDA", "OpenCL", "HIP"):
+        properties["Precision"] = "mixed"
+    return platform, properties
+
+
+class Simulation:
+    """Overdamped dynamics of a closed chain with RPY hydrodynamics.
+
+    Parameters
+    ----------
+    positions : array_like, shape (n_beads, 3), in d
+        Starting positions (copied to float64).
+    model : ChainModel, optional
+        Model parameters; default: the study's.
+    integrator : Integrator, optional
+        Time stepper; default :class:`knotmm.dynamics.deterministic.RK23` with tolerance 1e-4 d.
+    platform : str
+        OpenMM platform name or ``"auto"`` (see :func:`select_platform`).
+    threads : int
+        Threads of the CPU platform.
+    max_bond_length : float
+        A bond longer than this (in d) stops the run with :class:`SimulationFault`.
+    mobility_threads : int
+        Threads of the RPY pair loop (:func:`knotmm.dynamics.mobility.rpy_velocities`); the
+        trajectory does not depend on it.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (n_beads, 3), float64, in d
+    time : float
+        Simulated time, in tau_d.
+    currentStep : int
+        Accepted integrator steps so far (OpenMM's name, so OpenMM reporters work).
+    n_evaluations : int
+        Velocity (force + mobility) evaluations so far.
+    """
+
+    def __init__(
+        self,
+        positions,
+        model: ChainModel | None = None,
+        integrator: Integrator | None = None,
+        platform: str = "auto",
+        threads: int = 1,
+        max_bond_length: float = 3.0,
+        mobility_threads: int = 1,
+    ):
+        pos = np.array(positions, dtype=np.float64)
+        self.mobility_threads = int(mobility_threads)
+        self.model = ChainModel() if model is None else model
+        self.system = build_system(pos, self.model)
+        self.topology = build_topology(pos.shape[0])
+        self.integrator = RK23(0.01) if integrator is None else integrator
+        plat, props = select_platform(platform, pos.shape[0], threads)
+        # The OpenMM integrator is never stepped: knotmm integrates. It holds the step size
+        # that OpenMM reporters may read.
+        self._openmm_integrator = openmm.VerletIntegrator(self.integrator.timestep)
+        self.context = openmm.Context(self.system, self._openmm_integrator, plat, props)
+        self.platform_name = plat.getName()
+        self.positions = pos
+        self.n_beads = pos.shape[0]
+        self.bonds = ring_bonds(self.n_beads)
+        self.max_bond_length = float(max_bond_length)
+        self.time = 0.0
+        self.currentStep = 0
+        self.n_evaluations = 0
+        self.reporters: list = []
+        self.last_velocity: np.ndarray | None = None
+        self._check_state(self.positions, initial=True)
+        self._sync_context()
+
+    # -- physics ------------------------------------------------------------------------
+    def forces(self, positions: np.ndarray) -> np.ndarray:
+        """Total force on every bead, shape (n_beads, 3), in F0 (from the OpenMM Context)."""
+        shifted = positions - positions.mean(axis=0)
+        if self.model.segment_repulsion:
+            shifted = site_positions(shifted, self.model)
+        self.context.setPositions(shifted)
+        state = self.context.getState(getForces=True)
+        forces = _state_forces(state, shifted.shape[0])
+        # forces on midpoint sites are already distributed onto their beads by OpenMM
+        return forces[: self.n_beads] if self.model.segment_repulsion else forces
+
+    def velocity(self, positions: np.ndarray) -> np.ndarray:
+        """Bead velocities ``mu(r) F(r)``, shape (n_beads, 3), in d/tau_d."""
+        self.n_evaluations += 1
+        return rpy_velocities(positions, self.forces(positions), threads=self.mobility_threads)
+
+    def energies(self, positions: np.ndarray | None = None) -> dict[str, float]:
+        """Energy of each term (``bond``, ``bend``, ``steric``, ``gravity``) and ``total``.
+
+        In F0 d; gravity is ``g sum z`` with the true (unshifted) heights.
+        """
+        pos = self.positions if positions is None else positions
+        shift = pos.mean(axis=0)
+        self.context.setPositions(site_positions(pos - shift, self.model))
+        out = {}
+        for name, group in FORCE_GROUPS.items():
+            state = self.context.getState(getEnergy=True, groups={group})
+            out[name] = state.getPotentialEnergy().value_in_unit(unit.kilojoule_per_mole)
+        out["gravity"] += self.model.gravity * shift[2] * self.n_beads
+        out["total"] = sum(out.values())
+        return out
+
+    def bond_lengths(self, positions: np.ndarray | None = None) -> np.ndarray:
+        """Length of every bond, shape (n_beads,), in d (bond i joins beads i and i+1)."""
+        pos = self.positions if positions is None else positions
+        return np.linalg.norm(pos[self.bonds[:, 1]] - pos[self.bonds[:, 0]], axis=1)
+
+    # -- state checks ---------------------------------------------------------------------
+    def _check_state(self, y: np.ndarray, initial: bool = False, dt: float = 0.0) -> None:
+        """Raise SimulationFault if ``y`` (the state ``dt`` after the current one) is bad."""
+        where = "the starting positions" if initial else (
+            f"t = {self.time + dt:.6g} tau_d (step {self.currentStep + 1}; the last good state, "
+            f"at t = {self.time:.6g} tau_d, is kept)"
+        )
+        if not np.all(np.isfinite(y)):
+            bead = int(np.argwhere(~np.isfinite(y).all(axis=1))[0, 0])
+            raise SimulationFault(
+                f"positions became non-finite at {where}: first bad bead {bead}. Hint: lower "
+                f"run.tolerance (adaptive) or run.timestep (fixed step), or use an adaptive "
+                f"run.integrator (rk23, rkc2)"
+            )
+        lengths = self.bond_lengths(y)
+        worst = int(np.argmax(lengths))
+        if lengths[worst] > self.max_bond_length:
+            raise SimulationFault(
+                f"bond {worst} (beads {worst}-{(worst + 1) % self.n_beads}) is "
+                f"{lengths[worst]:.4g} d long at {where}, past run.max_bond_length = "
+                f"{self.max_bond_length:g}. Hint: the step is too large for the forces "
+                f"(lower run.tolerance or run.timestep), or the template overlaps itself"
+            )
+
+    def _sync_context(self) -> None:
+        """Put the current positions, step count and time into the Context (for reporters)."""
+        self.context.setPositions(site_positions(self.positions, self.model))
+        self.context.setTime(self.time)
+        self.context.setStepCount(self.currentStep)
+
+    # -- stepping ---------------------------------------------------------------------------
+    def _advance(self, max_dt: float) -> float:
+        try:
+            y_new, dt = self.integrator.step(self.velocity, self.positions, max_dt)
+        except StepSizeUnderflow as exc:
+            raise SimulationFault(
+                f"the adaptive step fell to {exc.timestep:.3g} tau_d (below run.min_timestep) "
+                f"at t = {self.time:.6g} tau_d (step {self.currentStep}): {exc.reason}. "
+                f"Hint: the forces are too stiff here (beads pressed together?); the last good "
+                f"state is kept"
+            ) from None
+        self._check_state(y_new, dt=dt)
+        self.positions = y_new
+        self.time += dt
+        self.currentStep += 1
+        return dt
+
+    def set_positions(self, positions) -> None:
+        """Replace the positions (forgetting the integrator's cached velocity)."""
+        pos = np.array(positions, dtype=np.float64)
+        if pos.shape != self.positions.shape:
+            raise ConfigError(f"positions: expected shape {self.positions.shape}, got {pos.shape}")
+        self._check_state(pos, initial=True)
+        self.positions = pos
+        self.integrator.reset()
+
+    def step(self, steps: int) -> None:
+        """Take ``steps`` accepted integrator steps (OpenMM's meaning of ``step``)."""
+        self._simulate(end_step=self.currentStep + int(steps))
+
+    def run(self, duration: float, write_at_start: bool = True) -> None:
+        """Advance the simulated time by ``duration`` tau_d, landing exactly on its end.
+
+        ``write_at_start``: time-scheduled reporters first report the current state when
+        they are due now (frame 0 of a new run).
+        """
+        if not duration > 0:
+            raise ConfigError(f"duration={duration!r}: must be > 0 (in tau_d)")
+        self._simulate(end_time=self.time + float(duration), write_at_start=write_at_start)
+
+    def _simulate(self, end_step=None, end_time=None, write_at_start=False):
+        # The loop is serial by design; BLAS threads (a Cholesky factor per Brownian step)
+        # only fight each other and OpenMM on small matrices: 0.4 ms single-threaded against
+        # 16-40 ms with oversubscribed threads, measured at N = 90 on 2 cores.
+        from threadpoolctl import threadpool_limits
+
+        try:
+            with threadpool_limits(limits=1, user_api="blas"):
+                self._simulate_loop(end_step, end_time, write_at_start)
+        except BaseException:
+            try:  # the Context follows the last whole step; the error that stopped us wins
+                self._sync_context()
+            except Exception:  # noqa: BLE001
+                pass
+            raise
+        self._sync_context()
+
+    def _simulate_loop(self, end_step, end_time, write_at_start):
+        end_step = math.inf if end_step is None else end_step
+        end_time = math.inf if end_time is None else end_time
+        if write_at_start:
+            due = [r for r in self.reporters
+                   if hasattr(r, "next_report_time")
+                   and r.next_report_time(self) <= self.time + _slack(self.time)]
+            self._report(due)
+        while self.currentStep < end_step and self.time < end_time - _slack(end_time):
+            step_target = end_step
+            time_target = end_time
+            due_step = {}
+            for r in self.reporters:
+                if hasattr(r, "next_report_time"):
+                    t_next = r.next_report_time(self)
+                    if t_next > self.time + _slack(self.time):
+                        time_target = min(time_target, t_next)
+                else:
+                    desc = r.describeNextReport(self)
+                    steps = desc["steps"] if isinstance(desc, dict) else desc[0]
+                    if steps > 0:
+                        due_step[id(r)] = self.currentStep + steps
+                        step_target = min(step_target, self.currentStep + steps)
+            while self.currentStep < step_target:
+                remaining = time_target - self.time
+                if remaining <= _slack(time_target):
+                    break
+                # Here every report due at the current time has been made: a stop asked
+                # for by a signal (knotmm.engine.interrupt) leaves a whole state to checkpoint.
+                raise_if_requested()
+                self._advance(remaining)
+                if abs(time_target - self.time) <= _slack(time_target):
+                    self.time = time_target
+                    break
+            due = []
+            for r in self.reporters:
+                if hasattr(r, "next_report_time"):
+                    if r.next_report_time(self) <= self.time + _slack(self.time):
+                        due.append(r)
+                elif due_step.get(id(r)) == self.currentStep:
+                    due.append(r)
+            self._report(due)
+
+    def _report(self, reporters) -> None:
+        if not reporters:
+            return
+        self._sync_context()
+        openmm_style = [r for r in reporters if not hasattr(r, "next_report_time")]
+        state = None
+        if openmm_style:
+            includes = set()
+            for r in openmm_style:
+                desc = r.describeNextReport(self)
+                if isinstance(desc, dict):
+                    includes.update(desc.get("include", []))
+                else:
+                    names = ["positions", "velocities", "forces", "energy"]
+                    includes.update(n for n, flag in zip(names, desc[1:5], strict=False) if flag)
+            if "velocities" in includes:
+                self.context.setVelocities(self.velocity(self.positions))
+            state = self.context.getState(
+                getPositions="positions" in includes,
+                getVelocities="velocities" in includes,
+                getForces="forces" in includes,
+                getEnergy="energy" in includes,
+            )
+        for r in reporters:
+            r.report(self, state)
+
+
+def _state_forces(state, n_particles: int) -> np.ndarray:
+    """Forces of an OpenMM State as a float64 array in kJ/mol/nm (= F0), shape (n, 3).
+
+    ``State.getForces(asNumpy=True)`` wraps the array in a unit Quantity after a ``dir()``
+    look-up, about 35 microseconds a call: a fifth of a whole velocity evaluation at N = 90.
+    The State's own array copy (the method ``getForces`` uses inside) skips that; if a
+    future OpenMM lacks it, the public call is used.
+    """
+    fill = getattr(state, "_getVectorAsNumpy", None)
+    if fill is not None:
+        out = np.empty((n_particles, 3))
+        try:
+            fill(openmm.State.Forces, out)
+            return out
+        except (TypeError, AttributeError, ValueError):
+            pass
+    return state.getForces(asNumpy=True).value_in_unit(
+        unit.kilojoule_per_mole / unit.nanometer
+    )
+
+
+def _slack(t: float) -> float:
+    """Time tolerance for "has this report time come": relative 1e-9, none at infinity."""
+    return 1e-9 * max(1.0, abs(t)) if math.isfinite(t) else 0.0

@@ -1,0 +1,1 @@
+"""Knot identity: writhe, knot type (topoly, in an isolated worker process), chirality."""

@@ -1,0 +1,229 @@
+"""Tests of knotmm.knots.identify: the writhe kernel and knot identification."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from knotmm.knots import identify as knots
+from knotmm.knots.identify import UNKNOWN, identify_knot, topoly_available, writhe
+
+needs_topoly = pytest.mark.skipif(not topoly_available(), reason="topoly not installed")
+
+
+def torus_curve(p, q, n, r0=3.0, a=1.0):
+    """The study's torus-knot parametrisation sampled at equal parameter steps."""
+    alpha = np.linspace(0.0, 2.0 * np.pi * p, n, endpoint=False)
+    rho = r0 + a * np.sin(q * alpha / p)
+    return np.c_[rho * np.cos(alpha), rho * np.sin(alpha), a * np.cos(q * alpha / p)]
+
+
+def naive_gauss_writhe(x, m=12):
+    """Writhe as a brute-force double sum of the Gauss integrand over a refined polygon.
+
+    Every segment is cut into ``m`` pieces; the integrand (t_i x t_j) . r_ij / |r_ij|^3
+    is summed over all pairs of pieces with the midpoint rule. Pieces of one segment are
+    parallel (zero integrand), pieces of adjacent segments are coplanar with r (zero too),
+    so no singular term appears.
+    """
+    seg = np.roll(x, -1, axis=0) - x
+    t = (np.arange(m) + 0.5) / m
+    pts = (x[:, None, :] + t[None, :, None] * seg[:, None, :]).reshape(-1, 3)
+    dl = np.repeat(seg / m, m, axis=0)
+    total = 0.0
+    for i in range(len(pts)):
+        r = pts[i] - pts
+        dist = np.linalg.norm(r, axis=1)
+        dist[i] = np.inf
+        total += np.sum(np.einsum("k,jk->j", dl[i], np.cross(dl, r)) / dist**3)
+    # (t_i x t_j) . (r_i - r_j) = t_i . (t_j x r_ij); sum over ordered pairs / 4 pi
+    return total / (4.0 * np.pi)
+
+
+def random_ring(rng, n=40):
+    """A smooth random closed curve (few Fourier modes) sampled at n points."""
+    t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    x = np.zeros((n, 3))
+    for k in range(1, 4):
+        a = rng.normal(size=3)
+        b = rng.normal(size=3)
+        x += np.outer(np.cos(k * t), a) + np.outer(np.sin(k * t), b)
+    return x
+
+
+# -- writhe --------------------------------------------------------------------------------
+def test_planar_polygon_has_zero_writhe():
+    t = np.linspace(0.0, 2.0 * np.pi, 50, endpoint=False)
+    circle = np.c_[np.cos(t), np.sin(t), np.zeros_like(t)]
+    assert writhe(circle) == pytest.approx(0.0, abs=1e-12)
+    star = np.c_[(1 + 0.5 * np.cos(5 * t)) * np.cos(t), (1 + 0.5 * np.cos(5 * t)) * np.sin(t)]
+    star = np.c_[star, np.zeros(len(t))]
+    assert writhe(star) == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_writhe_matches_brute_force_gauss_integral(seed):
+    # a trefoil with a random smooth distortion: strands stay well apart, so the midpoint
+    # rule of the brute-force sum converges
+    rng = np.random.default_rng(seed)
+    x = torus_curve(2, 3, 36) + 0.25 * random_ring(rng, 36)
+    assert writhe(x) == pytest.approx(naive_gauss_writhe(x, m=10), abs=2e-3)
+
+
+def test_trefoil_writhe_matches_brute_force_and_is_positive():
+    x = torus_curve(2, 3, 60)
+    w = writhe(x)
+    assert w > 3.0
+    assert w == pytest.approx(naive_gauss_writhe(x, m=8), abs=2e-3)
+
+
+def test_numba_kernel_matches_numpy_reference_and_leaves_input_alone():
+    rng = np.random.default_rng(3)
+    frames = np.stack([random_ring(rng, 25) + 0.1 * rng.normal(size=(25, 3)) for _ in range(6)])
+    frames.setflags(write=False)
+    before = frames.copy()
+    fast = writhe(frames)
+    ref = knots._writhe_numpy(frames)
+    np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-8)
+    np.testing.assert_array_equal(frames, before)
+    assert fast.shape == (6,)
+    np.testing.assert_allclose([writhe(f) for f in frames], fast, rtol=0, atol=1e-12)
+
+
+def test_writhe_invariances():
+    rng = np.random.default_rng(7)
+    x = random_ring(rng, 40)
+    w = writhe(x)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    if np.linalg.det(q) < 0:
+        q[:, 0] *= -1
+    assert writhe(x @ q.T + rng.normal(size=3)) == pytest.approx(w, abs=1e-9)
+    assert writhe(3.7 * x) == pytest.approx(w, abs=1e-9)
+    assert writhe(np.roll(x, 11, axis=0)) == pytest.approx(w, abs=1e-9)
+    assert writhe(x[::-1]) == pytest.approx(w, abs=1e-9)
+    mirrored = x * np.array([1.0, 1.0, -1.0])
+    assert writhe(mirrored) == pytest.approx(-w, abs=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(min_value=0, max_value=2**32 - 1), st.integers(min_value=5, max_value=30))
+def test_writhe_of_random_polygons_is_odd_under_mirroring(seed, n):
+    x = np.random.default_rng(seed).normal(size=(n, 3))
+    w = writhe(x)
+    assert np.isfinite(w)
+    assert writhe(x * np.array([-1.0, 1.0, 1.0])) == pytest.approx(-w, abs=1e-9)
+
+
+def test_writhe_rejects_bad_input():
+    with pytest.raises(ValueError, match="shape"):
+        writhe(np.zeros((10, 2)))
+    with pytest.raises(ValueError, match="at least 3"):
+        writhe(np.zeros((2, 3)))
+    bad = torus_curve(2, 3, 20)
+    bad[3, 1] = np.nan
+    with pytest.raises(ValueError, match="non-finite"):
+        writhe(bad)
+
+
+# -- knot identification -------------------------------------------------------------------
+@needs_topoly
+@pytest.mark.parametrize(
+    ("p", "q", "name"), [(2, 3, "3_1"), (3, 2, "3_1"), (2, 5, "5_1"), (2, 7, "7_1"), (3, 4, "8_19")]
+)
+def test_identify_torus_knots(p, q, name):
+    assert identify_knot(torus_curve(p, q, 150)) == name
+
+
+@needs_topoly
+def test_identify_unknot_and_chirality():
+    t = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
+    assert identify_knot(np.c_[np.cos(t), np.sin(t), 0.1 * np.sin(2 * t)]) == "0_1"
+    x = torus_curve(2, 3, 100)
+    assert identify_knot(x, chiral=True) == "+3_1"
+    assert identify_knot(x * np.array([1.0, 1.0, -1.0]), chiral=True) == "-3_1"
+
+
+@needs_topoly
+def test_identify_knot_lists_knots_with_the_same_polynomial():
+    x = torus_curve(2, 5, 120)
+    assert identify_knot(x) == "5_1"
+    assert set(identify_knot(x, minimal=False).split("|")) == {"5_1", "10_132"}
+
+
+def test_normalise_knot_name():
+    assert knots.normalise_knot_name("11a367") == "11a_367"
+    assert knots.normalise_knot_name("+11N34|-5.1#+3_1") == "+11n_34|-5_1#+3_1"
+    assert knots.normalise_knot_name("unknown") == "unknown"
+
+
+@needs_topoly
+def test_identify_knot_is_silent_and_keeps_stdin(capfd):
+    has_stdin = knots._fd_open(0)
+    before = os.fstat(0) if has_stdin else None
+    for _ in range(3):
+        identify_knot(torus_curve(2, 5, 80))
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
+    if has_stdin:
+        after = os.fstat(0)
+        assert (after.st_ino, after.st_dev) == (before.st_ino, before.st_dev)
+
+
+@needs_topoly
+def test_identify_knot_too_complex_is_unknown():
+    x = torus_curve(3, 7, 300)
+    assert identify_knot(x, max_cross=5) == UNKNOWN
+
+
+def test_identify_knot_without_topoly(monkeypatch):
+    monkeypatch.setattr(knots, "topoly_available", lambda: False)
+    assert identify_knot(torus_curve(2, 3, 60)) is None
+
+
+def test_identify_knot_rejects_batches():
+    with pytest.raises(ValueError, match="one frame"):
+        identify_knot(np.zeros((2, 10, 3)))
+
+
+def test_identify_knot_keeps_python_signal_handlers():
+    """topoly's C code installs its own termination handlers; ours must survive a call."""
+    import os
+    import signal
+    import time
+
+    from knotmm.knots.identify import identify_knot, topoly_available
+    from knotmm.shapes.templates import torus_knot
+
+    if not topoly_available():
+        pytest.skip("needs topoly")
+    hits = []
+    previous = signal.signal(signal.SIGTERM, lambda *args: hits.append(1))
+    try:
+        assert identify_knot(torus_knot(2, 3, 60)) == "3_1"
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.05)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert hits == [1]
+
+
+def test_identify_knot_leaves_the_recursion_limit_alone():
+    """topoly raises Python's recursion limit on every call; the caller's must come back."""
+    import sys
+
+    from knotmm.knots.identify import identify_knot, topoly_available
+    from knotmm.shapes.templates import torus_knot
+
+    if not topoly_available():
+        pytest.skip("needs topoly")
+    before = sys.getrecursionlimit()
+    sys.setrecursionlimit(1234)
+    try:
+        assert identify_knot(torus_knot(2, 3, 60)) == "3_1"
+        assert sys.getrecursionlimit() == 1234
+    finally:
+        sys.setrecursionlimit(before)
