@@ -40,8 +40,8 @@ import numpy as np
 
 from knotmm.dynamics.mobility import rpy_velocities
 from knotmm.engine.simulation import Simulation
-from knotmm.knots.identify import writhe
-from knotmm.shapes.templates import torus_knot
+from knotmm.knots.writhe import writhe
+from knotmm.shapes import torus_knot
 
 
 def _median_time(fn, repeats, inner):

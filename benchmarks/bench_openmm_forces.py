@@ -31,8 +31,9 @@ import numpy as np
 import openmm
 
 from knotmm.dynamics.mobility import rpy_velocities
-from knotmm.model.system import ChainModel, bend_force, bond_force, gravity_force, steric_force
-from knotmm.shapes.templates import torus_knot
+from knotmm.model.forces import bend_force, bond_force, gravity_force, steric_force
+from knotmm.model.system import ChainModel
+from knotmm.shapes import torus_knot
 
 
 def _per_call(fn, inner):

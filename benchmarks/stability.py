@@ -29,11 +29,11 @@ import time
 
 import numpy as np
 
-from knotmm.dynamics.deterministic import make_integrator
+from knotmm.dynamics.registry import make
 from knotmm.engine.simulation import Simulation
 from knotmm.errors import SimulationFault
 from knotmm.model.system import ChainModel
-from knotmm.shapes.templates import torus_knot
+from knotmm.shapes import torus_knot
 
 
 def is_stable(x0, name, dt, duration, max_bond, platform):
@@ -41,7 +41,7 @@ def is_stable(x0, name, dt, duration, max_bond, platform):
     sim = Simulation(
         x0,
         ChainModel(),
-        make_integrator(name, dt),
+        make(name, dt),
         platform=platform,
         max_bond_length=max_bond,
     )

@@ -25,7 +25,7 @@ _PUBLIC = {
     "RunConfig": "knotmm.config",
     "run": "knotmm.workflow",
     "resume": "knotmm.workflow",
-    "build_system": "knotmm.model.system",
+    "build_system": "knotmm.shapes.builder",
     "Simulation": "knotmm.engine.simulation",
     "load_run": "knotmm.io.run_data",
     "analyze_run": "knotmm.analysis.core",

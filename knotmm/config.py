@@ -31,6 +31,7 @@ from typing import Any
 
 import tomli_w
 
+from knotmm.dynamics import registry
 from knotmm.errors import ConfigError
 
 if sys.version_info >= (3, 11):
@@ -75,21 +76,13 @@ class Key:
     allow_inf: bool = False
 
 
-#: Integrators of the stochastic (finite Peclet) equation; the others are deterministic.
-BROWNIAN_INTEGRATOR_NAMES = ("ito_heun", "euler_maruyama")
-#: ``run.timestep`` when none is given: deterministic runs (the first step of an adaptive
-#: integrator) and Brownian ones (see :mod:`knotmm.dynamics.brownian`, "Step size").
-DEFAULT_TIMESTEP = 0.01
-DEFAULT_BROWNIAN_TIMESTEP = 0.002
-
-
 def resolve_stepping(cfg) -> tuple[str, float]:
     """The integrator and step a run uses: ``run.integrator`` and ``run.timestep`` resolved.
 
     ``integrator = "auto"`` is ``rk23`` for deterministic runs (``run.peclet = inf``) and
-    ``ito_heun`` at a finite Peclet number; an unset ``timestep`` is
-    :data:`DEFAULT_BROWNIAN_TIMESTEP` for a Brownian integrator at finite Pe, else
-    :data:`DEFAULT_TIMESTEP`. So setting ``run.peclet`` alone gives a sound Brownian run.
+    ``ito_heun`` at a finite Peclet number; an unset ``timestep`` is 0.002 for a Brownian
+    integrator at finite Pe, else 0.01 (:func:`knotmm.dynamics.registry.resolve`, which
+    holds the policy). So setting ``run.peclet`` alone gives a sound Brownian run.
 
     Parameters
     ----------
@@ -100,15 +93,7 @@ def resolve_stepping(cfg) -> tuple[str, float]:
     (str, float)
         Integrator name and step in tau_d.
     """
-    brownian = math.isfinite(float(cfg["run.peclet"]))
-    name = cfg["run.integrator"]
-    if name == "auto":
-        name = "ito_heun" if brownian else "rk23"
-    timestep = cfg["run.timestep"]
-    if timestep is None:
-        stochastic = brownian and name in BROWNIAN_INTEGRATOR_NAMES
-        timestep = DEFAULT_BROWNIAN_TIMESTEP if stochastic else DEFAULT_TIMESTEP
-    return name, float(timestep)
+    return registry.resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
 
 
 #: Every key a run file may hold, by table. Defaults are the study's parameters.
@@ -156,9 +141,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "time stepper: auto (default: rk23 at run.peclet = inf, ito_heun at finite Pe), "
             "rk23 (adaptive), rkc2 (adaptive, for very stiff chains), heun, midpoint, euler; "
             "finite run.peclet: ito_heun or euler_maruyama (fixed step)",
-            choices=(
-                "auto", "rk23", "rkc2", "heun", "midpoint", "euler", "ito_heun", "euler_maruyama",
-            ),
+            choices=(registry.AUTO, *registry.NAMES),
         ),
         "timestep": Key(
             "float", None, "step in tau_d (fixed-step and Brownian integrators); the first "

@@ -1,26 +1,25 @@
-"""From a validated run configuration to a finished run directory.
+"""From a validated run configuration to a finished run directory: :func:`run`, :func:`resume`.
 
-A run directory is a contract other tools rely on:
+The run directory's files are described in :mod:`knotmm.io.rundir`; the simulation and its
+reporters in :mod:`knotmm.engine` (``docs/architecture.md``). :func:`run`, as pseudocode::
 
-=================== =========================================================================
-``trajectory.dcd``  frames in Angstrom (1 d = 10 A), no unit cell; frame 0 is the start and
-                    frame k the state at ``k * output.frame_interval`` tau_d
-``topology.pdb``    the starting positions, one residue ``BEA`` per bead, CONECT records for
-                    every bond including the ring closure
-``run.toml``        every resolved parameter (a valid run file) plus a ``[knotmm]`` table:
-                    version, status (running, finished, fault, interrupted), template facts,
-                    and the run's summary
-``observables.csv`` time (tau_d), step, centre of mass (d), energy per term (F0 d), longest
-                    bond (d), current step size, velocity evaluations
-``view.vmd``        a VMD script: ``vmd -e view.vmd`` loads the pair and draws the ring
-=================== =========================================================================
+    resolve run.integrator = "auto" and the template; build the Simulation
+        (a bad config, template or platform fails here: nothing written)
+    lock the directory (a live owner: refused); check it, clear it with overwrite
+    write topology.pdb, view.vmd, run.toml (status = "running")
+    attach reporters: trajectory, observables, knot checks, checkpoint, progress
+    simulation.run(run.duration)   (frame 0 first)
+    record the outcome in run.toml: finished, fault (also a file that cannot be written),
+        interrupted (naming the signal); unlock
 
-Nothing is written until the configuration, the template and the platform have been checked,
-and an existing run directory is never overwritten without ``overwrite=True``.
+:func:`resume` locks the directory, checks that run.toml's parameters are the checkpoint's
+(run.duration may grow), loads the checkpoint into a new Simulation, cuts the trajectory
+and observables back to what the checkpoint counts, and goes on the same way.
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import logging
 import math
@@ -32,47 +31,64 @@ from pathlib import Path
 import numpy as np
 
 from knotmm import __version__
-from knotmm.config import RunConfig, read_toml, resolve_stepping
+from knotmm.config import RunConfig, resolve_stepping
+from knotmm.engine.checkpoint import CheckpointReporter, read_checkpoint
+from knotmm.engine.interrupt import StopRequested, describe_signal, stop_signal
 from knotmm.engine.reporters import DCDReporter, ObservablesReporter, ProgressReporter
 from knotmm.engine.simulation import Simulation
-from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault, TrajectoryFileError
-from knotmm.io.atomic import write_text_atomic as write_atomic
-from knotmm.model.system import ChainModel
+from knotmm.errors import (
+    ConfigError,
+    KnotmmError,
+    RunDirectoryError,
+    SimulationFault,
+    TrajectoryFileError,
+)
+from knotmm.io.dcd import truncate_dcd
+from knotmm.io.observables import truncate_csv
+from knotmm.io.rundir import (
+    ANALYSIS_FILE,
+    CHECKPOINT_FILE,
+    OBSERVABLES_FILE,
+    RUN_FILE,
+    STATUS_FAULT,
+    STATUS_FINISHED,
+    STATUS_INTERRUPTED,
+    STATUS_RUNNING,
+    TOPOLOGY_FILE,
+    TRAJECTORY_FILE,
+    OutputError,
+    RunLock,
+    describe_os_error,
+    prepare_directory,
+    read_facts,
+    write_run_toml,
+    write_vmd_script,
+    writing,
+)
 
-__all__ = ["RunResult", "run", "resume", "prepare_directory", "RUN_FILES", "write_atomic"]
+__all__ = ["RESUMABLE_KEYS", "RunResult", "OutputFault", "run", "resume"]
 
 log = logging.getLogger(__name__)
 
-#: Files knotmm writes into a run directory (and may replace with ``overwrite``).
-RUN_FILES = (
-    "trajectory.dcd",
-    "topology.pdb",
-    "run.toml",
-    "observables.csv",
-    "view.vmd",
-    "checkpoint.npz",
-    "analysis.json",
-)
+#: Run-file keys that may differ between a checkpoint and run.toml when resuming: they do
+#: not change the trajectory (run.duration may grow to extend a run).
+RESUMABLE_KEYS = frozenset({
+    "output.directory",
+    "run.duration",
+    "run.platform",
+    "run.threads",
+    "run.mobility_threads",
+    "run.topology_check_interval",
+    "run.on_topology_change",
+})
 
-VMD_SCRIPT = """\
-# VMD script written by knotmm {version}: run `vmd -e view.vmd` in this directory.
-# Lengths are in Angstrom: one bead diameter d = 10 A.
-mol new topology.pdb type pdb waitfor all
-mol addfile trajectory.dcd type dcd first 0 last -1 step 1 waitfor all
-set beads [atomselect top all]
-$beads set radius 5.0
-mol delrep 0 top
-mol representation VDW 1.0 16
-mol color ResID
-mol material AOChalky
-mol addrep top
-mol representation Bonds 2.0 12
-mol color ResID
-mol addrep top
-display projection Orthographic
-axes location LowerLeft
-animate goto 0
-"""
+
+class OutputFault(SimulationFault):
+    """A file of the run directory could not be written during the run (exit code 3).
+
+    The run stops with ``status = "fault"``; the frames written so far are kept and
+    ``knotmm run --resume`` continues once the cause (a full disk, ...) is gone.
+    """
 
 
 @dataclass
@@ -115,83 +131,6 @@ class RunResult:
         )
 
 
-def run_status(directory: Path) -> str | None:
-    """The ``[knotmm] status`` of a run directory, or None if it has no readable run.toml."""
-    path = Path(directory) / "run.toml"
-    if not path.exists():
-        return None
-    try:
-        return str(read_toml(path).get("knotmm", {}).get("status", "unknown"))
-    except ConfigError:
-        return "unreadable"
-
-
-def prepare_directory(directory: Path, overwrite: bool) -> None:
-    """Check that ``directory`` may be written; with ``overwrite``, remove knotmm's files.
-
-    Only the files of :data:`RUN_FILES` and knotmm's plots are removed, never anything else.
-
-    Raises
-    ------
-    RunDirectoryError
-        If the directory holds a run (or other files) and ``overwrite`` is false.
-    """
-    directory = Path(directory)
-    if directory.exists() and not directory.is_dir():
-        raise RunDirectoryError(
-            f"output directory {str(directory)!r} is a file; choose another --out"
-        )
-    if not directory.exists() or not any(directory.iterdir()):
-        return
-    status = run_status(directory)
-    if not overwrite:
-        if status is None:
-            raise RunDirectoryError(
-                f"output directory {str(directory)!r} is not empty and holds no knotmm run; "
-                f"choose another --out (or pass --overwrite to write knotmm's files there)"
-            )
-        raise RunDirectoryError(
-            f"output directory {str(directory)!r} already holds a {status} run; pass "
-            f"--overwrite to replace it, or choose another --out"
-        )
-    for name in RUN_FILES:
-        p = directory / name
-        if p.exists():
-            p.unlink()
-    for p in directory.glob("*.png"):
-        p.unlink()
-
-
-def _header() -> str:
-    return (
-        f"# knotmm run file, written by knotmm {__version__}.\n"
-        f"# Every resolved parameter; use it again with `knotmm run run.toml`.\n"
-        f"# Units: lengths in d, forces in F0, times in tau_d.\n\n"
-    )
-
-
-def write_run_toml(directory: Path, cfg: RunConfig, facts: dict) -> None:
-    """Write ``run.toml``: the resolved run file plus the ``[knotmm]`` facts table."""
-    import tomli_w
-
-    data = cfg.to_dict()
-    data["knotmm"] = {k: v for k, v in facts.items() if v is not None}
-    write_atomic(Path(directory) / "run.toml", _header() + tomli_w.dumps(data))
-
-
-def _make_simulation(cfg: RunConfig, positions, integrator) -> Simulation:
-    """The Simulation of a run; fails (platform, starting positions) before any writing."""
-    return Simulation(
-        positions,
-        ChainModel.from_config(cfg),
-        integrator,
-        platform=cfg["run.platform"],
-        threads=cfg["run.threads"],
-        max_bond_length=cfg["run.max_bond_length"],
-        mobility_threads=cfg["run.mobility_threads"],
-    )
-
-
 def run(
     cfg: RunConfig,
     directory: str | os.PathLike | None = None,
@@ -209,7 +148,8 @@ def run(
     overwrite : bool
         Replace an existing run in ``directory``.
     progress : bool, optional
-        Show a progress bar; default: only when standard error is a terminal.
+        Show a progress bar; default: a bar when standard error is a terminal, else a line
+        every 10 % or 30 s.
 
     Returns
     -------
@@ -217,199 +157,253 @@ def run(
 
     Raises
     ------
-    ConfigError, TemplateError, RunDirectoryError
-        Before anything is written.
+    ConfigError, TemplateError, RunDirectoryError, OutputError
+        Before the run starts (a live process owning ``directory`` included).
     SimulationFault
-        If the dynamics breaks down; the files written so far are kept, a last checkpoint
-        of the last good state is written, and ``run.toml`` says ``status = "fault"`` with
-        the message.
+        If the dynamics breaks down, or a file cannot be written (:class:`OutputFault`);
+        the files written so far are kept, a last checkpoint of the last good state is
+        written, and ``run.toml`` says ``status = "fault"`` with the message.
     """
-    from knotmm.dynamics.brownian import integrator_from_config
+    from knotmm.dynamics.registry import integrator_from_config
     from knotmm.io.pdb import write_pdb
-    from knotmm.shapes.templates import build_template
+    from knotmm.knots.identify import start_worker
+    from knotmm.shapes.builder import build_template
 
     wall0 = time.perf_counter()
+    start_worker()  # topoly's start-up in the knot worker overlaps building the run
     directory = Path(directory if directory is not None else cfg["output.directory"])
     name, timestep = resolve_stepping(cfg)  # run.toml records what is used, not "auto"
     cfg = cfg.replace({"run.integrator": name, "run.timestep": timestep})
-    integrator = integrator_from_config(cfg)  # checks integrator against run.peclet
+    integrator_from_config(cfg)  # checks the integrator against run.peclet before the template
     template = build_template(cfg)
     if template.resolved:
         cfg = cfg.replace(template.resolved)
-    n_beads = template.positions.shape[0]
-    sim = _make_simulation(cfg, template.positions, integrator)
-    prepare_directory(directory, overwrite)
     if cfg["output.directory"] != str(directory):
         cfg = cfg.replace({"output.directory": str(directory)})
+    sim = Simulation.from_config(cfg, template.positions)
+    if directory.exists() and not directory.is_dir():
+        prepare_directory(directory, overwrite)  # says it is a file
+    lock = RunLock(directory, "run")
+    try:
+        prepare_directory(directory, overwrite)
+        with writing(directory):
+            write_pdb(directory / TOPOLOGY_FILE, template.positions)
+            write_vmd_script(directory, __version__)
+        facts = {
+            "version": __version__,
+            "status": STATUS_RUNNING,
+            "created": _dt.datetime.now().isoformat(timespec="seconds"),
+            "template": template.description,
+            "template_writhe": float(template.writhe),
+            "template_knot_type": template.knot_type,
+            "n_beads": int(template.positions.shape[0]),
+            "integrator": sim.integrator.describe(),
+            "platform": sim.platform_name,
+            "frame_interval": cfg["output.frame_interval"],
+            "start_z": float(sim.positions[:, 2].mean()),
+        }
+        if template.notes:
+            facts["notes"] = list(template.notes)
+        write_run_toml(directory, cfg, facts)
+    except BaseException:
+        lock.release()
+        raise
+    return _drive(sim, cfg, directory, facts, None, progress, wall0, lock)
 
-    directory.mkdir(parents=True, exist_ok=True)
-    write_pdb(directory / "topology.pdb", template.positions)
-    write_atomic(directory / "view.vmd", VMD_SCRIPT.format(version=__version__))
-    facts = {
-        "version": __version__,
-        "status": "running",
-        "created": _dt.datetime.now().isoformat(timespec="seconds"),
-        "template": template.description,
-        "template_writhe": float(template.writhe),
-        "template_knot_type": template.knot_type,
-        "n_beads": int(n_beads),
-        "integrator": sim.integrator.describe(),
-        "platform": sim.platform_name,
-        "frame_interval": cfg["output.frame_interval"],
-        "start_z": float(sim.positions[:, 2].mean()),
-    }
-    if template.notes:
-        facts["notes"] = list(template.notes)
-    write_run_toml(directory, cfg, facts)
-    return _drive(sim, cfg, directory, facts, None, progress, wall0)
 
-
-def resume(directory: str | os.PathLike, progress: bool | None = None) -> RunResult:
+def resume(
+    directory: str | os.PathLike,
+    progress: bool | None = None,
+    duration: float | None = None,
+) -> RunResult:
     """Continue a run that was stopped or killed, from its last checkpoint.
 
     The trajectory and the observables are cut back to what the checkpoint counts and then
-    appended to; a deterministic run continues exactly as if it had never stopped.
+    appended to; a run continues exactly as if it had never stopped.
+
+    Parameters
+    ----------
+    directory : path
+        A run directory.
+    progress : bool, optional
+        As for :func:`run`.
+    duration : float, optional
+        A new ``run.duration``, in tau_d: extends the run (a finished one too).
 
     Raises
     ------
     TrajectoryFileError, ConfigError
-        If the directory holds no resumable run (no run.toml or checkpoint, damaged files).
+        If the directory holds no resumable run (no run.toml or checkpoint, damaged files),
+        or run.toml's parameters are no longer the checkpoint's (the message names the
+        changed keys).
     RunDirectoryError
-        If the run already finished.
+        If the run already finished (and ``duration`` does not extend it), or another live
+        process owns the directory.
     """
     from knotmm.config import load_run_file
-    from knotmm.engine.checkpoint import (
-        CHECKPOINT_NAME,
-        load_checkpoint,
-        truncate_csv,
-        truncate_dcd,
-    )
 
     wall0 = time.perf_counter()
     directory = Path(directory)
-    if not (directory / "run.toml").exists():
+    if not (directory / RUN_FILE).exists():
         raise TrajectoryFileError(
-            f"--resume {str(directory)!r}: no run.toml there; give the directory of a knotmm run"
+            f"--resume {str(directory)!r}: no {RUN_FILE} there; give the directory of a "
+            f"knotmm run"
         )
-    raw = read_toml(directory / "run.toml")
-    facts = dict(raw.get("knotmm", {}))
-    status = facts.get("status")
-    if status == "finished":
-        raise RunDirectoryError(
-            f"--resume {str(directory)!r}: the run already finished; run longer with a new "
-            f"run file (its run.toml, with a larger run.duration) in another directory"
-        )
-    from knotmm.dynamics.brownian import integrator_from_config
-
-    cfg = load_run_file(directory / "run.toml")
-    integrator = integrator_from_config(cfg)
-    ckpt = load_checkpoint(directory / CHECKPOINT_NAME)
-    if ckpt["integrator"] != cfg["run.integrator"]:
-        raise TrajectoryFileError(
-            f"checkpoint integrator {ckpt['integrator']!r} differs from run.integrator = "
-            f"{cfg['run.integrator']!r} in run.toml; the files do not belong together"
-        )
-    counters = ckpt["counters"]
-    truncate_dcd(directory / "trajectory.dcd", int(counters["frames"]))
-    truncate_csv(directory / "observables.csv", int(counters["rows"]))
-    sim = _make_simulation(cfg, ckpt["positions"], integrator)
-    sim.integrator.set_state(ckpt["integrator_state"])
-    sim.time = ckpt["time"]
-    sim.currentStep = ckpt["step"]
-    sim.n_evaluations = ckpt["evaluations"]
-    facts.update(status="running", resumed_at=sim.time, message=None)
-    write_run_toml(directory, cfg, facts)
+    lock = RunLock(directory, "--resume")
+    try:
+        facts = read_facts(directory)
+        cfg = load_run_file(directory / RUN_FILE)
+        if duration is not None:
+            cfg = cfg.replace({"run.duration": float(duration)})
+        if facts.get("status") == STATUS_FINISHED and not (
+            duration is not None and float(duration) > float(facts.get("time_reached", 0.0))
+        ):
+            raise RunDirectoryError(
+                f"--resume {str(directory)!r}: the run already finished at t = "
+                f"{facts.get('time_reached', cfg['run.duration'])} tau_d; pass --duration T "
+                f"with a larger T to extend it"
+            )
+        state = read_checkpoint(directory / CHECKPOINT_FILE)
+        _check_same_physics(directory, cfg, state["counters"].get("config"))
+        if duration is not None and float(duration) < state["time"]:
+            raise ConfigError(
+                f"--duration {duration:g}: the checkpoint in {str(directory)!r} is at t = "
+                f"{state['time']:g} tau_d already; give a longer duration"
+            )
+        sim = Simulation.from_config(cfg, state["positions"])
+        counters = sim.loadCheckpoint(directory / CHECKPOINT_FILE)
+        truncate_dcd(directory / TRAJECTORY_FILE, int(counters["frames"]))
+        truncate_csv(directory / OBSERVABLES_FILE, int(counters["rows"]))
+        stale = directory / ANALYSIS_FILE
+        if stale.exists():  # it describes the run as it was; `knotmm analyze` makes it anew
+            stale.unlink()
+        facts.update(status=STATUS_RUNNING, resumed_at=sim.time, message=None)
+        write_run_toml(directory, cfg, facts)
+    except BaseException as exc:
+        lock.release()
+        if isinstance(exc, OSError) and not isinstance(exc, KnotmmError):
+            raise OutputError(describe_os_error(directory, exc)) from None
+        raise
     log.info("resuming %s at t = %g tau_d (step %d)", directory, sim.time, sim.currentStep)
-    return _drive(sim, cfg, directory, facts, counters, progress, wall0)
+    return _drive(sim, cfg, directory, facts, counters, progress, wall0, lock)
 
 
-def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
+def _check_same_physics(directory: Path, cfg: RunConfig, stored: dict | None) -> None:
+    """Refuse to resume when run.toml's parameters are no longer the checkpoint's."""
+    if stored is None:  # a checkpoint from before knotmm stored its configuration
+        return
+    now = cfg.to_dict()
+    changed = []
+    for table in sorted(set(now) | set(stored)):
+        keys = set(now.get(table, {})) | set(stored.get(table, {}))
+        for key in sorted(keys):
+            dotted = f"{table}.{key}"
+            old, new = stored.get(table, {}).get(key), now.get(table, {}).get(key)
+            if dotted not in RESUMABLE_KEYS and old != new:
+                changed.append(f"{dotted} ({old!r} -> {new!r})")
+    if changed:
+        raise ConfigError(
+            f"--resume {str(directory)!r}: {RUN_FILE} was edited since the checkpoint: "
+            f"{', '.join(changed)}; a run cannot change its parameters half way: undo the "
+            f"edit, or start a new run from this {RUN_FILE} in another directory"
+        )
+
+
+def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock) -> RunResult:
     """Attach the reporters, run to ``run.duration``, and record the outcome in run.toml."""
-    from knotmm.engine.checkpoint import CHECKPOINT_NAME, CheckpointReporter
-    from knotmm.engine.interrupt import StopRequested
-    from knotmm.engine.reporters import KnotTypeWatch
-    from knotmm.knots.identify import topoly_available
-
     resuming = counters is not None
     counters = counters or {"frames": 0, "rows": 0, "checkpoints": 0, "checks": 0}
     frame_interval = cfg["output.frame_interval"]
     obs_interval = cfg["output.observables_interval"] or frame_interval
     ckpt_interval = frame_interval * max(1, math.ceil(cfg["output.checkpoint_interval"]
                                                       / frame_interval - 1e-9))
-    dcd = DCDReporter(directory / "trajectory.dcd", frame_interval, sim.topology,
-                      append=resuming, first_index=counters["frames"])
-    obs = ObservablesReporter(directory / "observables.csv", obs_interval, append=resuming,
-                              first_index=counters["rows"])
-    reporters = [dcd, obs]
-    watch = None
-    if cfg["run.topology_check_interval"] > 0 and topoly_available():
-        from knotmm.knots.identify import identify_knot
-
-        expected = facts.get("knot_type") if resuming else None
-        if expected is None:
-            expected = identify_knot(sim.positions, chiral=True)
-            facts["knot_type_start"] = expected
-        watch = KnotTypeWatch(
-            cfg["run.topology_check_interval"],
-            expected=expected,
-            on_change=cfg["run.on_topology_change"],
-            first_index=max(1, counters.get("checks", 0)),
-        )
-        reporters.append(watch)
-
-    def current_counters(next_checkpoint):
-        return {
-            "frames": dcd.index,
-            "rows": obs.index,
-            "checkpoints": next_checkpoint,
-            "checks": watch.index if watch else 0,
-        }
-
-    ckpt = CheckpointReporter(directory / CHECKPOINT_NAME, ckpt_interval, current_counters,
-                              first_index=counters.get("checkpoints", 0))
-    reporters.append(ckpt)
-    duration = cfg["run.duration"]
-    bar = ProgressReporter(sim.time, duration, frame_interval, enabled=progress)
-    reporters.append(bar)
-    sim.reporters.extend(reporters)
+    reporters = []
+    dcd = obs = watch = bar = None
+    status, message = STATUS_FAULT, None
     z0 = float(facts.get("start_z", sim.positions[:, 2].mean()))
     steps0 = sim.currentStep
-    status, message = "finished", None
     try:
-        if duration > sim.time:
-            sim.run(duration - sim.time, write_at_start=not resuming)
+        with writing(directory / TRAJECTORY_FILE):
+            dcd = DCDReporter(directory / TRAJECTORY_FILE, frame_interval, sim.topology,
+                              append=resuming, first_index=counters["frames"])
+        with writing(directory / OBSERVABLES_FILE):
+            obs = ObservablesReporter(directory / OBSERVABLES_FILE, obs_interval,
+                                      append=resuming, first_index=counters["rows"])
+        reporters += [dcd, obs]
+        watch = _knot_watch(sim, cfg, facts, counters, resuming)
         if watch is not None:
-            watch.collect(wait=True)  # checks still running beside the simulation
-    except SimulationFault as exc:
-        status, message = "fault", str(exc)
-        ckpt.save_now(sim)  # the last good state
-        raise
-    except StopRequested:
-        # Stopped between two steps (knotmm.engine.interrupt): save this exact state, so that a
-        # resumed run goes on from here rather than from the last periodic checkpoint.
-        status, message = "interrupted", "interrupted by the user"
-        ckpt.save_now(sim)  # knot checks still under way are dropped when closing, below
-        raise
-    except KeyboardInterrupt:
-        status, message = "interrupted", "interrupted by the user"
+            reporters.append(watch)
+        config = cfg.to_dict()
+
+        def current_counters(next_checkpoint):
+            return {
+                "frames": dcd.index,
+                "rows": obs.index,
+                "checkpoints": next_checkpoint,
+                "checks": watch.index if watch else 0,
+                "config": config,
+            }
+
+        ckpt = CheckpointReporter(directory / CHECKPOINT_FILE, ckpt_interval, current_counters,
+                                  first_index=counters.get("checkpoints", 0))
+        duration = cfg["run.duration"]
+        bar = ProgressReporter(sim.time, duration, frame_interval, enabled=progress)
+        reporters += [ckpt, bar]
+        sim.reporters.extend(reporters)
+        try:
+            if duration > sim.time:
+                # a resumed run first makes any report due at its start (a fault while
+                # writing a frame leaves it due)
+                sim.run(duration - sim.time, write_at_start=True)
+            if watch is not None:
+                watch.collect(wait=True)  # checks still running beside the simulation
+            status, message = STATUS_FINISHED, None
+        except SimulationFault as exc:
+            status, message = STATUS_FAULT, str(exc)
+            _quietly(ckpt.save_now, sim)  # the last good state
+            raise
+        except StopRequested as exc:
+            # Stopped between two steps (knotmm.engine.interrupt): save this exact state, so
+            # that a resumed run goes on from here rather than from the last checkpoint.
+            status, message = STATUS_INTERRUPTED, f"interrupted by {describe_signal(exc.signal)}"
+            _quietly(ckpt.save_now, sim)  # knot checks under way are dropped when closing
+            raise
+        except KeyboardInterrupt:
+            status = STATUS_INTERRUPTED
+            message = f"interrupted by {describe_signal(stop_signal() or 'SIGINT')}"
+            raise
+        except OSError as exc:
+            status, message = STATUS_FAULT, describe_os_error(directory, exc)
+            # cut the files back to the frames and rows counted (a partial one dropped, space
+            # freed), then checkpoint the state: --resume goes on from here
+            _close(dcd, obs)
+            _quietly(truncate_dcd, directory / TRAJECTORY_FILE, dcd.index)
+            _quietly(truncate_csv, directory / OBSERVABLES_FILE, obs.index)
+            _quietly(ckpt.save_now, sim)
+            raise OutputFault(message + "; the frames written so far are kept: free the "
+                              "space (or fix the permissions) and run knotmm run --resume "
+                              f"{directory}") from None
+    except Exception as exc:
+        if status == STATUS_FAULT and message is None:
+            message = " ".join(f"{type(exc).__name__}: {exc}".split())
         raise
     finally:
-        for r in (dcd, obs, bar):
-            r.close()
+        _close(dcd, obs, bar)
         if watch is not None:
             # an interrupted run must end promptly (a sweep repeats its stop signal every
             # second): checks still under way are dropped; the next one after resume sees
             # any change they would have seen
-            watch.close(wait=status != "interrupted")
+            watch.close(wait=status != STATUS_INTERRUPTED)
         wall = time.perf_counter() - wall0
         velocity = (z0 - float(sim.positions[:, 2].mean())) / sim.time if sim.time > 0 else 0.0
+        frames = dcd.index if dcd is not None else int(counters["frames"])
         result = RunResult(
             directory=directory,
             time=sim.time,
             steps=sim.currentStep,
             evaluations=sim.n_evaluations,
             rejected=sim.integrator.n_rejected,
-            frames=dcd.index,
+            frames=frames,
             wall_time=wall,
             sedimentation_velocity=velocity,
             session_steps=sim.currentStep - steps0,
@@ -421,20 +415,88 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0) -> RunResult:
             steps=sim.currentStep,
             evaluations=sim.n_evaluations,
             rejected_steps=sim.integrator.n_rejected,
-            frames=dcd.index,
+            frames=frames,
             wall_time_s=round(wall, 3),
             mean_sedimentation_velocity=velocity,
             final_max_bond=float(np.max(sim.bond_lengths())),
         )
         if watch is not None:
-            facts["knot_type"] = watch.current
-            facts["knot_type_checks"] = int(facts.get("knot_type_checks", 0)) + watch.checks
-            if watch.dropped:
-                facts["knot_type_checks_dropped"] = (
-                    int(facts.get("knot_type_checks_dropped", 0)) + watch.dropped
-                )
-            changes = list(facts.get("knot_type_changes", []))
-            changes += [{"time": t, "from": str(a), "to": str(b)} for t, a, b in watch.changes]
-            facts["knot_type_changes"] = changes
-        write_run_toml(directory, cfg, facts)
+            _record_checks(facts, watch)
+        try:
+            with _signals_held():  # a second Ctrl-C must not leave status = "running"
+                write_run_toml(directory, cfg, facts)
+        finally:
+            lock.release()
     return result
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """Hold SIGINT and SIGTERM back for the block (a few milliseconds); they are raised again
+    after it. Only in the main thread, where Python runs its signal handlers."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, frame: pending.append(signum))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+        for sig in pending:
+            signal.raise_signal(sig)
+
+
+def _knot_watch(sim, cfg, facts, counters, resuming):
+    """The knot-type reporter of a run, or None (checks off, or no topoly)."""
+    from knotmm.engine.reporters import KnotTypeWatch
+    from knotmm.knots.identify import topoly_available
+
+    if not (cfg["run.topology_check_interval"] > 0 and topoly_available()):
+        return None
+    expected = facts.get("knot_type") if resuming else None
+    watch = KnotTypeWatch(
+        cfg["run.topology_check_interval"],
+        expected=expected,
+        on_change=cfg["run.on_topology_change"],
+        first_index=max(1, counters.get("checks", 0)),
+    )
+    if expected is None:  # identified in the worker beside the run, not before it
+        watch.identify_start(sim.positions)
+    return watch
+
+
+def _record_checks(facts: dict, watch) -> None:
+    if watch.start_type is not None:
+        facts["knot_type_start"] = watch.start_type
+    facts["knot_type"] = watch.current
+    # only checks that ran: not those whose worker failed (watch.skipped) or were dropped
+    facts["knot_type_checks"] = int(facts.get("knot_type_checks", 0)) + watch.checks
+    if watch.dropped:
+        facts["knot_type_checks_dropped"] = (
+            int(facts.get("knot_type_checks_dropped", 0)) + watch.dropped
+        )
+    changes = list(facts.get("knot_type_changes", []))
+    changes += [{"time": t, "from": str(a), "to": str(b)} for t, a, b in watch.changes]
+    facts["knot_type_changes"] = changes
+
+
+def _close(*reporters) -> None:
+    """Close writers; a write error while flushing was already reported by the run."""
+    for r in reporters:
+        if r is not None:
+            with contextlib.suppress(OSError):
+                r.close()
+
+
+def _quietly(func, *args) -> None:
+    """Best effort while a run is already failing: the first error is the one reported."""
+    try:
+        func(*args)
+    except (OSError, TrajectoryFileError) as exc:
+        log.info("while stopping: %s", exc)

@@ -30,7 +30,7 @@ def rng():
 @pytest.fixture(scope="session")
 def trefoil40():
     """The T(2,3) template with 40 beads, in d (centred, bonds 0.6 d)."""
-    from knotmm.shapes.templates import torus_knot
+    from knotmm.shapes import torus_knot
 
     return torus_knot(2, 3, 40)
 
@@ -38,6 +38,6 @@ def trefoil40():
 @pytest.fixture(scope="session")
 def trefoil90():
     """The T(2,3) template with 90 beads (the default run's start), in d."""
-    from knotmm.shapes.templates import torus_knot
+    from knotmm.shapes import torus_knot
 
     return torus_knot(2, 3, 90)

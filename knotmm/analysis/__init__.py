@@ -15,12 +15,21 @@ Examples
 Modules: :mod:`~knotmm.io.run_data` (loading), :mod:`~knotmm.analysis.window` (steady
 window), :mod:`~knotmm.analysis.spectra`, :mod:`~knotmm.analysis.fit`,
 :mod:`~knotmm.analysis.topology`, :mod:`~knotmm.analysis.plots` (imported on first use),
-:mod:`~knotmm.analysis.synthetic` (trajectories with known answers).
+:mod:`~knotmm.analysis.synthetic` and :mod:`~knotmm.analysis.synthetic_regimes`
+(trajectories with known answers), :mod:`~knotmm.analysis.body` (torus normal, body
+cylindrical coordinates, flat-torus criterion), :mod:`~knotmm.analysis.detect` (is there a
+swirl?), :mod:`~knotmm.analysis.regimes` and :mod:`~knotmm.analysis.regime_report` (regime
+checks and their analysis.json keys), :mod:`~knotmm.analysis.bootstrap` (block-bootstrap
+uncertainties), :mod:`~knotmm.analysis.replicas` (a sweep directory: mean +- standard error
+over replicas).
 """
 
+from knotmm.analysis.body import BodyFrame, body_frame
 from knotmm.analysis.core import ANALYSIS_FILE, analyze, analyze_run
+from knotmm.analysis.detect import SwirlDetection, detect_swirl
 from knotmm.analysis.fit import ScaledCoordinates, VortexFit, fit_vortex_knot, scaled_coordinates
 from knotmm.analysis.geometry import Cylindrical, cylindrical, winding_numbers
+from knotmm.analysis.replicas import analyze_sweep
 from knotmm.analysis.result import AnalysisResult, format_table
 from knotmm.analysis.spectra import SpectralPeak, Spectrum, rotation_spectrum, swirl_spectrum
 from knotmm.analysis.topology import KnotTypes, handedness, knot_types, rotation_sense
@@ -40,17 +49,22 @@ _PLOTS = (
 __all__ = [
     "ANALYSIS_FILE",
     "AnalysisResult",
+    "BodyFrame",
     "Cylindrical",
     "KnotTypes",
     "RunData",
     "ScaledCoordinates",
     "SpectralPeak",
     "Spectrum",
+    "SwirlDetection",
     "VortexFit",
     "Window",
     "analyze",
     "analyze_run",
+    "analyze_sweep",
+    "body_frame",
     "cylindrical",
+    "detect_swirl",
     "fit_vortex_knot",
     "format_table",
     "handedness",

@@ -1,4 +1,11 @@
-"""The analysis pipeline: window -> observables -> spectra -> fit -> topology -> files."""
+"""The analysis pipeline: window -> regime -> observables -> spectra -> fit -> topology -> files.
+
+The regime checks (:mod:`knotmm.analysis.regimes`) sit between the steady window and the
+measurements: is there a swirl at all, is the window a flat torus, is it tilted, has the
+swirl amplitude relaxed. The vortex-knot fit is made in the body frame
+(:func:`knotmm.analysis.regime_report.body_fit_coordinates`). Times are frame index x
+frame_interval (mdtraj reads a DCD's time as the frame index).
+"""
 
 from __future__ import annotations
 
@@ -11,6 +18,13 @@ import numpy as np
 
 from knotmm.analysis.fit import fit_vortex_knot
 from knotmm.analysis.geometry import cylindrical, winding_numbers
+from knotmm.analysis.regime_report import (
+    body_fit_coordinates,
+    regime_keys,
+    shared_knot_cache,
+    single_threaded_blas,
+)
+from knotmm.analysis.regimes import assess
 from knotmm.analysis.result import AnalysisResult
 from knotmm.analysis.spectra import rotation_spectrum, swirl_spectrum
 from knotmm.analysis.topology import (
@@ -23,14 +37,11 @@ from knotmm.analysis.topology import (
 from knotmm.analysis.window import steady_window
 from knotmm.errors import ConfigError
 from knotmm.io.run_data import RunData, load_run
+from knotmm.io.rundir import ANALYSIS_FILE
 
 __all__ = ["analyze", "analyze_run", "ANALYSIS_FILE"]
 
 logger = logging.getLogger(__name__)
-
-#: Name of the result file written into the run directory.
-ANALYSIS_FILE = "analysis.json"
-
 
 def _check_int(value, name: str) -> int | None:
     if value is None:
@@ -54,6 +65,7 @@ def _velocity(times: np.ndarray, z_com: np.ndarray) -> tuple[float, float]:
     return -slope, err
 
 
+@single_threaded_blas
 def analyze(
     data: RunData,
     t_from: float | None = None,
@@ -94,8 +106,11 @@ def analyze(
     # unless --to is given, the window is looked for only in the frames before the first
     # change (the same detection, on a shorter trajectory, so a collapse is still found).
     n_usable = len(times)
+    identify = shared_knot_cache()  # both scans below identify mostly the same frames
     if t_to is None and knot_samples > 0 and len(times) > 2:
-        scan = knot_types(times, positions, 0, len(times) - 1, samples=knot_samples)
+        scan = knot_types(
+            times, positions, 0, len(times) - 1, samples=knot_samples, identify=identify
+        )
         if scan.changed_frame is not None and scan.changed_frame >= 2:
             n_usable = int(scan.changed_frame)
             notes.append(
@@ -103,7 +118,11 @@ def analyze(
                 f"({scan.initial} -> {scan.end}): the window ends before it"
             )
     window = steady_window(times[:n_usable], positions[:n_usable], t_from=t_from, t_to=t_to)
-    notes += window.notes
+    # body frame: swirl detection, relaxation, torus shape and tilt (knotmm.analysis.regimes)
+    regime = assess(times, positions, window, n_usable)
+    window = regime.window
+    detected = regime.detection.detected
+    notes += window.notes + regime.notes
     sel = window.frames
     t_w, x_w = times[sel], positions[sel]
     coords = cylindrical(positions)
@@ -150,13 +169,19 @@ def analyze(
     # spectra
     swirl = swirl_spectrum(t_w, rho, z_rel)
     rot = rotation_spectrum(t_w, alpha)
+    # the same about the torus axis (body frame): the fit's starting values
+    body_swirl = swirl_spectrum(t_w, regime.body.rho[sel], regime.body.z[sel])
+    body_rot = rotation_spectrum(t_w, regime.body.phi[sel])
+    lab_ok = detected and not regime.tilted  # the lab-frame swirl is the swirl
     length = t_w[-1] - t_w[0] + data.frame_interval
-    if swirl.peak.period > length / 2:
+    if not detected:
+        notes.append(regime.detection.reason + ": tau_swirl and C are not reported")
+    elif lab_ok and swirl.peak.period > length / 2:
         notes.append(
             f"the window ({length:g} tau_d) holds fewer than two swirl periods: tau_swirl is "
             "poorly determined"
         )
-    if rot.peak.period > length:
+    if rot.peak.period > length and not regime.tilted:
         notes.append(
             f"the window ({length:g} tau_d) covers {length / rot.peak.period:.0%} of a "
             f"rotation (tau_rot = {rot.peak.period:.4g} tau_d): tau_rot assumes the rotation "
@@ -167,23 +192,32 @@ def analyze(
     vfit = None
     q_fit = q if q is not None else q_det
     amplitude = float(np.sqrt(2.0 * np.mean((rho - rho.mean(axis=0)) ** 2)))
+    if fit and not (detected and regime.toroidal):
+        fit = False
+        notes.append("no swirl or no flat torus in the window: vortex-knot fit skipped")
     if fit and q_fit is None:
         notes.append("no q given and no core winding detected: vortex-knot fit skipped")
     elif fit:
         if q is None:
             notes.append(f"q not known: the fit uses the detected core winding q = {q_fit}")
-        tau_rot_guess = 1.0 / rot.peak.frequency if rot.peak.frequency else math.inf
+        f_rot = body_rot.peak.frequency
+        tau_rot_guess = 1.0 / f_rot if f_rot else math.inf
         try:
             vfit = fit_vortex_knot(
-                t_w, rho, alpha, x_w[..., 2], p, q_fit, swirl.peak.period, tau_rot_guess
+                t_w,
+                *body_fit_coordinates(regime.body, sel),
+                p,
+                q_fit,
+                body_swirl.peak.period,
+                tau_rot_guess,
             )
         except (ValueError, np.linalg.LinAlgError) as exc:
             notes.append(f"vortex-knot fit failed ({exc}); C is the rms swirl of rho")
         if vfit is not None:
             amplitude = vfit.swirl_amplitude
             for name, spec, fitted in (
-                ("tau_swirl", swirl.peak.period, vfit.tau_swirl),
-                ("tau_rot", rot.peak.period, abs(vfit.tau_rot)),
+                ("tau_swirl", body_swirl.peak.period, vfit.tau_swirl),
+                ("tau_rot", body_rot.peak.period, abs(vfit.tau_rot)),
             ):
                 if abs(spec - fitted) > 0.05 * spec:
                     notes.append(
@@ -199,7 +233,9 @@ def analyze(
     # topology
     wr, wr_std = mean_writhe(x_w)
     if knot_samples > 0:
-        kt = knot_types(times, positions, window.start, window.stop, samples=knot_samples)
+        kt = knot_types(
+            times, positions, window.start, window.stop, samples=knot_samples, identify=identify
+        )
     else:
         kt = KnotTypes(None, None, None, notes=["knot identification skipped"])
     notes += kt.notes
@@ -208,6 +244,9 @@ def analyze(
     from knotmm.analysis.tilt import tilt_analysis
 
     tilt = tilt_analysis(positions, times).to_dict() if len(times) >= 2 else None
+    extra = regime_keys(regime, vfit, p, q_fit, notes, body_swirl, body_rot)
+    if not (detected and regime.toroidal):
+        amplitude = float("nan")
 
     return AnalysisResult(
         sedimentation_velocity=velocity,
@@ -216,12 +255,14 @@ def analyze(
         major_radius_std=rho0_std,
         major_radius_geometric=rho_geo,
         swirl_amplitude=amplitude,
-        tau_swirl=swirl.peak.period,
-        tau_swirl_uncertainty=swirl.peak.period_uncertainty,
-        tau_rot=rot.peak.period,
-        tau_rot_uncertainty=rot.peak.period_uncertainty,
+        tau_swirl=swirl.peak.period if lab_ok else float("nan"),
+        tau_swirl_uncertainty=swirl.peak.period_uncertainty if lab_ok else float("nan"),
+        tau_rot=rot.peak.period if not regime.tilted else float("nan"),
+        tau_rot_uncertainty=rot.peak.period_uncertainty if not regime.tilted else float("nan"),
         rotation_frequency=rot.peak.frequency,
-        rotation_sense=rotation_sense(rot.peak.frequency),
+        rotation_sense=rotation_sense(rot.peak.frequency)
+        if regime.toroidal and not regime.tilted
+        else None,
         writhe=wr,
         writhe_std=wr_std,
         handedness=handedness(wr),
@@ -239,6 +280,8 @@ def analyze(
         knots=kt,
         notes=notes,
         tilt=tilt,
+        swirl_detected=lab_ok,
+        extra=extra,
         data=data,
         coords=coords,
     )

@@ -213,8 +213,11 @@ def plot_spectrum(result: AnalysisResult, ax=None):
         ax.semilogy(spec.frequencies[keep], spec.power[keep], color=color, lw=1, label=label)
         peak = spec.peak
         ax.axvline(peak.frequency, color=color, ls="--", lw=0.8)
+        text = f"${tau}$ = {peak.period:.4g} $\\pm$ {peak.period_uncertainty:.2g}"
+        if spec.name == "swirl" and not result.swirl_detected:
+            text = "no swirl detected (or a tilted torus): highest point only"
         ax.annotate(
-            f"${tau}$ = {peak.period:.4g} $\\pm$ {peak.period_uncertainty:.2g}",
+            text,
             xy=(peak.frequency, 1.0),
             xytext=(4, -12 if spec.name == "swirl" else -26),
             textcoords="offset points",

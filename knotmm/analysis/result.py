@@ -12,6 +12,7 @@ import numpy as np
 
 from knotmm.analysis.fit import VortexFit
 from knotmm.analysis.geometry import Cylindrical
+from knotmm.analysis.regime_report import tilt_row
 from knotmm.analysis.spectra import Spectrum
 from knotmm.analysis.topology import KnotTypes
 from knotmm.analysis.window import Window
@@ -64,7 +65,7 @@ class AnalysisResult:
     major_radius_geometric : float
         ``N l0 / (2 pi p)``.
     swirl_amplitude : float
-        C, from the vortex-knot fit.
+        C, from the vortex-knot fit; NaN (null) without a detected swirl or a flat torus.
     tau_swirl, tau_rot : float
         Swirl and rotation periods from the spectra (positive), with ``*_uncertainty``.
     rotation_frequency : float
@@ -73,6 +74,13 @@ class AnalysisResult:
     swirl_spectrum, rotation_spectrum : Spectrum
     fit : VortexFit or None
     knots : KnotTypes
+    swirl_detected : bool
+        False when the swirl test fails (:mod:`knotmm.analysis.detect`) or the window is
+        tilted (the lab-frame swirl then mixes tilt and swirl): ``swirl_sense`` is then None
+        (and ``tau_swirl`` is None in the JSON).
+    extra : dict
+        The keys of :func:`knotmm.analysis.regime_report.regime_keys` (body frame, torus
+        fraction, swirl detection, bootstrap uncertainties), merged into ``to_dict()``.
     """
 
     sedimentation_velocity: float
@@ -105,6 +113,8 @@ class AnalysisResult:
     notes: list[str] = field(default_factory=list)
     tilt: dict | None = None
     plots: list[str] = field(default_factory=list)
+    swirl_detected: bool = True
+    extra: dict = field(default_factory=dict)
     data: RunData | None = field(default=None, repr=False)
     coords: Cylindrical | None = field(default=None, repr=False)
 
@@ -132,7 +142,7 @@ class AnalysisResult:
         means a bead at the top of its cross-section moves away from the vertical axis.
         """
         f = self.swirl_spectrum.peak.frequency
-        if not np.isfinite(f) or f == 0:
+        if not self.swirl_detected or not np.isfinite(f) or f == 0:
             return None
         return "outward at the top" if f > 0 else "inward at the top"
 
@@ -214,6 +224,7 @@ class AnalysisResult:
             },
             "plots": list(self.plots),
             "tilt": self.tilt,
+            **self.extra,  # regime checks, body frame, bootstrap (knotmm.analysis.regime_report)
             "notes": list(self.notes),
         }
         return _clean(out)
@@ -248,6 +259,13 @@ def _fmt(value, err=None, digits: int = 4) -> str:
     return text
 
 
+def _fmt_signed(value) -> str:
+    """A number with its sign always shown (``+2.5``, ``-2.5``), as knot types show theirs."""
+    text = _fmt(value)
+    positive = isinstance(value, float) and math.isfinite(value) and value > 0
+    return f"+{text}" if positive else text
+
+
 def format_table(result: AnalysisResult) -> str:
     """A short plain-text table of the reported quantities."""
     d = result.to_dict()
@@ -278,7 +296,7 @@ def format_table(result: AnalysisResult) -> str:
         ("tau_rot/tau_sed", _fmt(d["tau_rot_over_tau_sed"], d["tau_rot_over_tau_sed_uncertainty"])),
         ("rotation (from above)", _fmt(d["rotation_sense"])),
         ("swirl", _fmt(d["swirl_sense"])),
-        ("writhe", f"{_fmt(d['writhe'])}  ({_fmt(d['handedness'])}-handed)"),
+        ("writhe", f"{_fmt_signed(d['writhe'])}  (handedness {_fmt(d['handedness'])})"),
         (
             "knot type",
             _fmt(knot)
@@ -293,13 +311,15 @@ def format_table(result: AnalysisResult) -> str:
             ", ".join(_fmt(q.get(k), digits=3) for k in ("r2_rho", "r2_alpha", "r2_z")),
         ),
     ]
-    tilt = d.get("tilt")
+    tilt = tilt_row(d)
     if tilt:
-        incl = tilt.get("inclination_median_deg")
+        rows.append(("torus axis vs gravity", tilt))
+        rows.append(("swirl test", d["swirl_detection"]["reason"].split(":")[0]))
+        body_tau = _fmt(d["tau_swirl_body"], d["tau_swirl_body_uncertainty"])
+        rows.append(("tau_swirl body [tau_d]", body_tau))
         rows.append((
-            "torus axis vs gravity",
-            f"median tilt {_fmt(incl)} deg, {tilt['flips']['count']} flips, toroidal "
-            f"{100 * tilt['fraction_toroidal']:.0f}% of frames",
+            "swirl half-amplitude rho, z [d]",
+            f"{_fmt(d['swirl_amplitude_rho'])}, {_fmt(d['swirl_amplitude_z'])}",
         ))
     width = max(len(k) for k, _ in rows)
     lines = [f"{k:<{width}}  {v}" for k, v in rows]

@@ -26,7 +26,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-__all__ = ["SpectralPeak", "Spectrum", "line_spectrum", "swirl_spectrum", "rotation_spectrum"]
+__all__ = [
+    "SpectralPeak",
+    "Spectrum",
+    "line_spectrum",
+    "refine_frequency",
+    "rotation_spectrum",
+    "swirl_spectrum",
+]
 
 _PAD = 8
 _LOCAL_POINTS = 41
@@ -107,8 +114,25 @@ def _dtft(signals: np.ndarray, times: np.ndarray, freqs: np.ndarray) -> np.ndarr
     return phase @ signals
 
 
-def _refine(tapered: np.ndarray, times: np.ndarray, guess: float, half_width: float) -> float:
-    """Frequency of the maximum of the summed power within guess +- half_width."""
+def refine_frequency(
+    tapered: np.ndarray, times: np.ndarray, guess: float, half_width: float
+) -> float:
+    """Frequency of the maximum of the summed power within guess +- half_width.
+
+    Parameters
+    ----------
+    tapered : ndarray, shape (n_frames, n_signals), complex
+        Signals already multiplied by their taper.
+    times : ndarray, shape (n_frames,)
+        In tau_d.
+    guess, half_width : float
+        In 1/tau_d.
+
+    Returns
+    -------
+    float
+        In 1/tau_d.
+    """
 
     def negative_power(f: float) -> float:
         return -float((np.abs(_dtft(tapered, times, np.array([f]))) ** 2).sum())
@@ -157,7 +181,7 @@ def line_spectrum(
     k = int(np.argmax(np.where(allowed, power, -np.inf)))
     grid_step = 1.0 / (n_fft * dt)
 
-    f0 = _refine(tapered, times, freqs[k], grid_step)
+    f0 = refine_frequency(tapered, times, freqs[k], grid_step)
 
     # bead by bead: parabola through the local maximum on a fine grid of +-1 bin
     local = f0 + np.linspace(-1.0, 1.0, _LOCAL_POINTS) / length
@@ -175,7 +199,7 @@ def line_spectrum(
     if m >= 16:
         h = m // 2
         halves = tuple(
-            _refine(part * _taper(len(ts))[:, None], ts, f0, 1.0 / (len(ts) * dt))
+            refine_frequency(part * _taper(len(ts))[:, None], ts, f0, 1.0 / (len(ts) * dt))
             for part, ts in ((signals[:h], times[:h]), (signals[h:], times[h:]))
         )
         f_err = float(np.hypot(f_err, 0.5 * (halves[1] - halves[0])))

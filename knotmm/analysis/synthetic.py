@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from knotmm.io.rundir import OBSERVABLES_FILE, RUN_FILE, TOPOLOGY_FILE, TRAJECTORY_FILE
 from knotmm.units import d_to_angstrom
 
 __all__ = ["vortex_knot_positions", "write_run_directory"]
@@ -120,22 +121,17 @@ def write_run_directory(
     import tomli_w
     from mdtraj.formats import DCDTrajectoryFile
 
+    from knotmm.io.pdb import mdtraj_topology
+
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     x = np.asarray(positions, dtype=np.float64)
     n_frames, n_beads = x.shape[:2]
 
-    top = mdtraj.Topology()
-    chain = top.add_chain()
-    atoms = []
-    for _ in range(n_beads):
-        residue = top.add_residue("BEA", chain)
-        atoms.append(top.add_atom("B", mdtraj.element.carbon, residue))
-    for i in range(n_beads):
-        top.add_bond(atoms[i], atoms[(i + 1) % n_beads])
+    top = mdtraj_topology(n_beads)
     # mdtraj stores nm; 1 d = 1 nm, so d values go in unchanged and come out as 10 A per d.
-    mdtraj.Trajectory(x[:1], top).save_pdb(str(out / "topology.pdb"))
-    with DCDTrajectoryFile(str(out / "trajectory.dcd"), "w") as fh:
+    mdtraj.Trajectory(x[:1], top).save_pdb(str(out / TOPOLOGY_FILE))
+    with DCDTrajectoryFile(str(out / TRAJECTORY_FILE), "w") as fh:
         fh.write(d_to_angstrom(x).astype(np.float32))
 
     if write_run_file:
@@ -147,7 +143,7 @@ def write_run_directory(
         for name, values in (config or {}).items():
             tables.setdefault(name, {}).update(values)
         tables.setdefault("knotmm", {}).setdefault("version", "synthetic")
-        (out / "run.toml").write_text(tomli_w.dumps(tables))
+        (out / RUN_FILE).write_text(tomli_w.dumps(tables))
 
     com = x.mean(axis=1)
     times = np.arange(n_frames) * float(frame_interval)
@@ -156,5 +152,5 @@ def write_run_directory(
         f"{t:.6g},{k},{c[0]:.6g},{c[1]:.6g},{c[2]:.6g}"
         for k, (t, c) in enumerate(zip(times, com, strict=True))
     ]
-    (out / "observables.csv").write_text("\n".join(rows) + "\n")
+    (out / OBSERVABLES_FILE).write_text("\n".join(rows) + "\n")
     return out

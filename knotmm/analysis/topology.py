@@ -1,12 +1,14 @@
 """Handedness, rotation sense and knot type along a trajectory.
 
-* Handedness is the sign of the writhe (right-handed: positive), averaged over frames of
-  the window. Writhe comes from :func:`knotmm.knots.identify.writhe`.
+* Handedness is the sign of the writhe (``"right"``: positive), averaged over frames of
+  the window, in the words of :mod:`knotmm.knots.chirality`. Writhe comes from
+  :func:`knotmm.knots.writhe.writhe`.
 * Rotation sense is read from the signed rotation frequency about the vertical axis
   through the centre of mass, as seen from above with gravity pointing down (towards the
   viewer's back): a positive frequency (alpha increasing, x towards y) is
   ``"counterclockwise"``.
-* Knot type uses :func:`knotmm.knots.identify.identify_knot` (topoly). The first change is found
+* Knot type uses :func:`knotmm.knots.identify.identify_knot` (topoly, in knotmm's worker
+  process), signed with its handedness (``"+3_1"``, ``"-5_1"``). The first change is found
   by sampling the trajectory evenly and bisecting between the last sample with the
   initial type and the first without it; a change that reverts between two samples can be
   missed.
@@ -19,11 +21,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from knotmm.knots import identify as knots
+from knotmm.knots import chirality
+from knotmm.knots.identify import identify_knot
+from knotmm.knots.writhe import writhe as _writhe
 
 __all__ = [
     "KnotTypes",
     "handedness",
+    "identify_signed",
     "rotation_sense",
     "mean_writhe",
     "knot_types",
@@ -52,15 +57,18 @@ def mean_writhe(positions: np.ndarray, max_frames: int = 20) -> tuple[float, flo
     """
     x = np.asarray(positions)
     idx = np.unique(np.linspace(0, len(x) - 1, min(max_frames, len(x))).round().astype(int))
-    values = np.atleast_1d(knots.writhe(x[idx]))
+    values = np.atleast_1d(_writhe(x[idx]))
     return float(values.mean()), float(values.std())
 
 
 def handedness(writhe: float, threshold: float = WRITHE_THRESHOLD) -> str | None:
-    """``"right"`` for positive writhe, ``"left"`` for negative, None if ``|writhe|`` is tiny."""
+    """``"right"`` for positive writhe, ``"left"`` for negative, None if ``|writhe|`` is tiny.
+
+    :func:`knotmm.knots.chirality.handedness` with the analysis's threshold.
+    """
     if not np.isfinite(writhe) or abs(writhe) < threshold:
         return None
-    return "right" if writhe > 0 else "left"
+    return chirality.handedness(writhe)
 
 
 def rotation_sense(rotation_frequency: float) -> str | None:
@@ -88,7 +96,8 @@ class KnotTypes:
     Attributes
     ----------
     initial, start, end : str or None
-        Type at frame 0, at the window start and at the window end (None: topoly missing).
+        Type at frame 0, at the window start and at the window end, signed (``"+3_1"``;
+        None: topoly missing).
     changed_at : float or None
         Time of the first frame whose type differs from frame 0's, in tau_d; None if no
         change was found.
@@ -106,6 +115,15 @@ class KnotTypes:
     changed_frame: int | None = None
     checked_frames: int = 0
     notes: list = field(default_factory=list)
+
+
+def identify_signed(positions: np.ndarray) -> str | None:
+    """Knot type of one frame signed with its handedness (``"-5_1"``), or None without topoly.
+
+    :func:`knotmm.knots.identify.identify_knot` with ``chiral=True``: the spelling that
+    run.toml's ``knot_type`` uses too.
+    """
+    return identify_knot(positions, chiral=True)
 
 
 def knot_types(
@@ -129,14 +147,13 @@ def knot_types(
     samples : int
         Evenly spaced frames checked over the whole trajectory before bisecting.
     identify : callable, optional
-        ``positions (n_beads, 3) -> str | None``; default
-        :func:`knotmm.knots.identify.identify_knot`.
+        ``positions (n_beads, 3) -> str | None``; default :func:`identify_signed`.
 
     Returns
     -------
     KnotTypes
     """
-    identify = identify or knots.identify_knot
+    identify = identify or identify_signed
     cache: dict[int, str | None] = {}
 
     def kind(i: int) -> str | None:
@@ -169,7 +186,7 @@ def knot_types(
             break
         previous = int(i)
     notes = []
-    if knots.UNKNOWN in (initial, kind(start), kind(stop)):
+    if chirality.UNKNOWN in (initial, kind(start), kind(stop)):
         notes.append("topoly could not name the knot in some frames ('unknown')")
     return KnotTypes(
         initial=initial,

@@ -51,7 +51,7 @@ from knotmm.analysis.geometry import Cylindrical, cylindrical
 from knotmm.analysis.spectra import swirl_spectrum
 from knotmm.errors import ConfigError
 
-__all__ = ["Window", "steady_window", "window_signals", "MIN_FRAMES"]
+__all__ = ["Window", "steady_window", "window_signals", "longest_run", "MIN_FRAMES"]
 
 #: Fewest frames a window may hold (spectra and fits need several samples per period).
 MIN_FRAMES = 16
@@ -190,7 +190,8 @@ def _close_gaps(mask: np.ndarray, max_gap: int) -> np.ndarray:
     return out
 
 
-def _longest_run(mask: np.ndarray) -> tuple[int, int] | None:
+def longest_run(mask: np.ndarray) -> tuple[int, int] | None:
+    """First and last index of the longest stretch of True values (None if there is none)."""
     if not mask.any():
         return None
     edges = np.flatnonzero(np.diff(np.r_[False, mask, False].astype(np.int8)))
@@ -338,7 +339,7 @@ def steady_window(
     cyl = cylindrical(positions)
     signals = window_signals(t, positions, cyl)
     mask, smoothed, bands = _coarse(signals, smooth, tol)
-    run = _longest_run(_close_gaps(mask, smooth))
+    run = longest_run(_close_gaps(mask, smooth))
     notes: list[str] = []
     levels: dict = {k: {"level": v[0], "band": v[1]} for k, v in bands.items()}
     culprit = None

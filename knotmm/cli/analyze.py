@@ -24,7 +24,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "directory (model units: d, tau_d)."
         ),
     )
-    parser.add_argument("run", metavar="RUN", help="run directory, or a DCD trajectory file")
+    parser.add_argument(
+        "run",
+        metavar="RUN",
+        help="run directory, a DCD trajectory file, or a sweep directory (every run analysed; "
+        "mean +- standard error per point over its replicas in replicas.json)",
+    )
     parser.add_argument(
         "--from",
         dest="t_from",
@@ -75,6 +80,18 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return parser
 
 
+def _options(args) -> dict:
+    """The analysis options shared by a run and a sweep directory."""
+    return {
+        "t_from": args.t_from,
+        "t_to": args.t_to,
+        "p": args.p,
+        "q": args.q,
+        "plots": args.plots,
+        "knot_samples": max(0, args.knot_samples),
+    }
+
+
 def execute(args) -> int:
     """Run the analysis and print a short table; 0 on success."""
     import matplotlib
@@ -82,21 +99,63 @@ def execute(args) -> int:
     matplotlib.use("Agg")
     from knotmm.analysis import analyze_run, format_table
     from knotmm.analysis.core import ANALYSIS_FILE
+    from knotmm.analysis.replicas import is_sweep_directory
 
+    if is_sweep_directory(args.run):
+        return _execute_sweep(args)
     result = analyze_run(
         args.run,
-        t_from=args.t_from,
-        t_to=args.t_to,
-        p=args.p,
-        q=args.q,
-        plots=args.plots,
         frame_interval=args.frame_interval,
         topology=args.topology,
         out_dir=args.out,
-        knot_samples=max(0, args.knot_samples),
+        **_options(args),
     )
     print(format_table(result))
     out = args.out or (result.data.directory if result.data else ".")
     files = [ANALYSIS_FILE, *result.plots]
     print(f"wrote {', '.join(files)} in {out}")
+    return 0
+
+
+#: Columns of the per-point table printed for a sweep directory.
+SWEEP_COLUMNS = (
+    "sedimentation_velocity",
+    "tau_swirl_body",
+    "swirl_amplitude",
+    "torus_fraction",
+    "body_frame.flips_per_100_tau",
+)
+
+
+def _mean_se(stat: dict | None) -> str:
+    if not stat or stat["mean"] is None:
+        return "n/a"
+    text = f"{stat['mean']:.4g}"
+    if stat["std_error"] is not None:
+        text += f" +- {stat['std_error']:.2g}"
+    return text
+
+
+def _execute_sweep(args) -> int:
+    """Analyse every run of a sweep directory; print mean +- standard error per point."""
+    from pathlib import Path
+
+    from knotmm.analysis.replicas import REPLICAS_FILE, analyze_sweep
+
+    if args.out is not None or args.frame_interval is not None or args.topology is not None:
+        logger.warning("--out, --frame-interval and --topology are ignored for a sweep")
+    summary = analyze_sweep(args.run, **_options(args))
+    rows = [("point", "n", *SWEEP_COLUMNS)]
+    for name, point in summary["points"].items():
+        stats = point["statistics"]
+        rows.append(
+            (name, str(len(point["runs"])), *(_mean_se(stats.get(c)) for c in SWEEP_COLUMNS))
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    for row in rows:
+        print("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
+    for name, point in summary["points"].items():
+        for run, error in point["failed"].items():
+            print(f"note: {name}: {run} failed: {error}")
+    print(f"wrote {REPLICAS_FILE} (mean +- standard error over replicas) in {Path(args.run)}")
     return 0

@@ -21,11 +21,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument("run_file", nargs="?", metavar="RUN.toml", help="run file (TOML)")
     p.add_argument("--out", metavar="DIR", help="run directory (default: output.directory)")
-    p.add_argument("--duration", type=float, metavar="T", help="simulated time, in tau_d")
+    p.add_argument("--duration", type=float, metavar="T",
+                   help="simulated time, in tau_d (with --resume: extend the run to T)")
     p.add_argument("--beads", type=int, metavar="N", help="number of beads")
     p.add_argument("--overwrite", action="store_true", help="replace an existing run directory")
     p.add_argument("--resume", metavar="DIR",
-                   help="continue a stopped or killed run from its last checkpoint")
+                   help="continue a stopped or killed run from its last checkpoint (a "
+                        "finished one with --duration T)")
     p.add_argument(
         "--set",
         action="append",
@@ -70,16 +72,17 @@ def execute(args) -> int:
 
     if args.resume:
         given = [o for o, v in (("RUN.toml", args.run_file), ("--out", args.out),
-                                ("--duration", args.duration), ("--beads", args.beads),
-                                ("--set", args.set), ("--overwrite", args.overwrite)) if v]
+                                ("--beads", args.beads), ("--set", args.set),
+                                ("--overwrite", args.overwrite)) if v]
         if given:
             raise ConfigError(
-                f"--resume takes no other run options (got {', '.join(given)}): a resumed run "
-                f"keeps the parameters in its run.toml"
+                f"--resume takes no other run options but --duration (got "
+                f"{', '.join(given)}): a resumed run keeps the parameters in its run.toml"
             )
         # Ctrl-C / SIGTERM: finish the step, checkpoint that state, then stop (exit 130)
         with stop_between_steps():
-            print(resume(args.resume, progress=args.progress).summary())
+            result = resume(args.resume, progress=args.progress, duration=args.duration)
+        print(result.summary())
         return 0
     cfg = config_from_args(args)
     with stop_between_steps():

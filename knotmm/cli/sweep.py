@@ -44,7 +44,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--dry-run",
         action="store_true",
-        help="validate the sweep file and list the points; run nothing",
+        help="validate the sweep file, make the checks of `knotmm run` on every point (exit "
+        "2 when one cannot run) and list the points; run nothing",
     )
     bar = p.add_mutually_exclusive_group()
     bar.add_argument(
@@ -66,16 +67,19 @@ def execute(args) -> int:
     import sys
 
     from knotmm.errors import ConfigError
-    from knotmm.sweep.core import describe_points, load_sweep_file, run_sweep
+    from knotmm.sweep import check_points, describe_points, load_sweep_file, run_sweep
 
     if args.workers is not None and args.workers < 0:
         raise ConfigError(f"--workers {args.workers}: expected an integer >= 0")
     sweep = load_sweep_file(args.sweep_file, directory=args.out)
     for note in sweep.notes:
         print(f"knotmm: note: {note}", file=sys.stderr)
-    if args.dry_run:
-        print(describe_points(sweep))
-        return 0
+    if args.dry_run:  # the checks `knotmm run` makes, on every point; nothing is written
+        errors = {c.point.name: c.error for c in check_points(sweep.points) if not c.ok}
+        print(describe_points(sweep, errors))
+        for name, error in errors.items():
+            print(f"knotmm: error: point {name}: {error}", file=sys.stderr)
+        return 2 if errors else 0
     result = run_sweep(
         sweep,
         workers=args.workers,

@@ -56,6 +56,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help=f"number of beads N (default {SCHEMA['knot']['beads'].default})",
     )
     parser.add_argument("--out", "-o", metavar="FILE.pdb", help="write the template here")
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace the --out file if it exists"
+    )
     parser.add_argument("--mirror", action="store_true", help="the mirror image (z -> -z)")
     parser.add_argument("--minor-radius", type=float, metavar="A", help="tube radius a, in d")
     parser.add_argument(
@@ -143,7 +146,7 @@ def parse_knot(text: str) -> dict:
 
 
 def _print_list(out) -> None:
-    from knotmm.shapes.templates import (  # noqa: PLC0415
+    from knotmm.shapes.knotinfo import (  # noqa: PLC0415
         BUILTIN_BRAIDS,
         knotinfo_available,
         list_named_knots,
@@ -174,6 +177,18 @@ def _print_list(out) -> None:
         print(wrapped, file=out)
 
 
+def _check_out(out: str, overwrite: bool) -> Path:
+    """The ``--out`` path, checked before the template is built."""
+    path = Path(out)
+    if path.suffix.lower() != ".pdb":
+        raise ConfigError(f"--out={out!r}: expected a file name ending in .pdb")
+    if path.is_dir():
+        raise ConfigError(f"--out={out!r} is a directory; give a file name")
+    if path.exists() and not overwrite:
+        raise ConfigError(f"--out={out!r} exists; add --overwrite to replace it")
+    return path
+
+
 def execute(args) -> int:
     """Run ``knotmm template``; return the exit code."""
     out = sys.stdout
@@ -183,6 +198,13 @@ def execute(args) -> int:
     if not args.knot:
         raise ConfigError("KNOT is missing: e.g. knotmm template 3_1 --beads 120 --out 3_1.pdb")
     knot = parse_knot(args.knot)
+    for option, value in (("--frame", args.frame), ("--topology", args.topology)):
+        if value is not None and knot["kind"] != "file":
+            raise ConfigError(
+                f"{option}={value!r} applies only to a file knot (file:PATH), not to "
+                f"KNOT={args.knot!r}; leave {option} out"
+            )
+    out_path = _check_out(args.out, args.overwrite) if args.out else None
     optional = {
         "beads": args.beads,
         "minor_radius": args.minor_radius,
@@ -202,9 +224,9 @@ def execute(args) -> int:
         data.setdefault(table, {})[key] = value
     cfg = RunConfig.from_dict(data)
 
-    from knotmm.shapes.templates import build_template  # noqa: PLC0415
+    from knotmm.shapes.builder import build_template  # noqa: PLC0415
 
-    tpl = build_template(cfg)
+    tpl = build_template(cfg, allow_open_chain=True)  # --out writes it closed
     check = tpl.check
     n = tpl.n_beads
     rows = [("knot", tpl.description), ("beads", str(n))]
@@ -243,14 +265,10 @@ def execute(args) -> int:
         if note.startswith("knot.beads=") and args.beads is None:
             continue  # the file's bead count, not one the user asked for
         rows.append(("note", note))
-    if args.out:
+    if out_path is not None:
         from knotmm.io.pdb import write_pdb  # noqa: PLC0415
 
-        path = Path(args.out)
-        if path.suffix.lower() != ".pdb":
-            raise ConfigError(f"--out={args.out!r}: expected a file name ending in .pdb")
-        if path.is_dir():
-            raise ConfigError(f"--out={args.out!r} is a directory; give a file name")
+        path = out_path
         try:
             write_pdb(path, tpl.positions)
         except OSError as exc:

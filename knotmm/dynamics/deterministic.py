@@ -29,8 +29,8 @@ tolerance and the number of stages from the spectral radius (a nonlinear power i
 its cost per unit time grows like ``sqrt(rho / dt)`` instead of ``rho``. On this chain with
 the study's stiffness it is no cheaper than ``rk23`` (about 50 velocity evaluations per
 tau_d either way); on a much stiffer problem (decay rates up to 1e4) it needed 14x fewer
-evaluations (tests/test_integrators.py). Its ``tolerance`` bounds the error per step, so
-its global error can exceed the tolerance (measured: 1.4-32x on a smooth test problem);
+evaluations (tests/dynamics/test_integrators.py). Its ``tolerance`` bounds the error per
+step, so its global error can exceed the tolerance (measured: 1.4-32x on a smooth test problem);
 rk23's global error stayed at 0.3-0.6x its tolerance.
 
 References
@@ -48,7 +48,6 @@ from collections.abc import Callable
 import numpy as np
 
 __all__ = [
-    "INTEGRATORS",
     "Integrator",
     "Euler",
     "Heun",
@@ -56,7 +55,6 @@ __all__ = [
     "RK23",
     "RKC2",
     "StepSizeUnderflow",
-    "make_integrator",
 ]
 
 Rhs = Callable[[np.ndarray], np.ndarray]
@@ -475,22 +473,3 @@ class RKC2(_Adaptive):
         self._h_old = h
         self.timestep = min(self.max_timestep, h * fac)
 
-
-#: Integrator name -> class.
-INTEGRATORS = {cls.name: cls for cls in (Euler, Heun, Midpoint, RK23, RKC2)}
-
-
-def make_integrator(
-    name: str,
-    timestep: float,
-    tolerance: float = 1e-4,
-    max_timestep: float = 1.0,
-    min_timestep: float = 1e-7,
-) -> Integrator:
-    """Construct an integrator by name (see :data:`INTEGRATORS`)."""
-    if name not in INTEGRATORS:
-        raise ValueError(f"integrator={name!r}: expected one of {', '.join(INTEGRATORS)}")
-    cls = INTEGRATORS[name]
-    if cls.adaptive:
-        return cls(timestep, tolerance, max_timestep, min_timestep)
-    return cls(timestep)

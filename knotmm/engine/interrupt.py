@@ -26,25 +26,46 @@ from contextlib import contextmanager
 
 __all__ = [
     "StopRequested",
+    "describe_signal",
     "raise_if_requested",
     "request_stop",
     "stop_between_steps",
     "stop_requested",
+    "stop_signal",
 ]
 
 _requested = threading.Event()
+_received: list[str] = []  # names of the signals received inside stop_between_steps
 
 
 class StopRequested(KeyboardInterrupt):
     """A stop asked for by a signal, raised between two steps: the simulation state is whole.
 
-    A subclass of ``KeyboardInterrupt``, so code that handles Ctrl-C handles it too.
+    A subclass of ``KeyboardInterrupt``, so code that handles Ctrl-C handles it too. Its
+    ``signal`` attribute names the signal (``"SIGTERM"``), or is None for
+    :func:`request_stop`.
     """
+
+    def __init__(self, signal_name: str | None = None):
+        super().__init__(signal_name or "stop requested")
+        self.signal = signal_name
+
+
+def describe_signal(name: str | None) -> str:
+    """``"SIGINT (Ctrl-C)"``, ``"SIGTERM"``; ``"a stop request"`` for None."""
+    if name is None:
+        return "a stop request"
+    return f"{name} (Ctrl-C)" if name == "SIGINT" else name
 
 
 def stop_requested() -> bool:
     """Whether a signal has asked the running simulation to stop at its next step boundary."""
     return _requested.is_set()
+
+
+def stop_signal() -> str | None:
+    """Name of the first signal received in the current (or last) :func:`stop_between_steps`."""
+    return _received[0] if _received else None
 
 
 def request_stop() -> None:
@@ -56,16 +77,17 @@ def raise_if_requested() -> None:
     """Raise :class:`StopRequested` (once) if a stop has been asked for."""
     if _requested.is_set():
         _requested.clear()
-        raise StopRequested
+        raise StopRequested(stop_signal())
 
 
 @contextmanager
 def stop_between_steps(stream=None):
     """Within the block, SIGINT and SIGTERM ask for a stop at the next step boundary.
 
-    The first signal prints one line to ``stream`` (default: stderr) and sets the request;
-    a second one raises ``KeyboardInterrupt`` at once. Outside the main thread, where Python
-    cannot install signal handlers, the block runs with the handlers it has.
+    The first signal prints one line naming it to ``stream`` (default: stderr) and sets the
+    request; any later one raises ``KeyboardInterrupt`` at once, also while the run is
+    already ending (closing its files and helper processes). Outside the main thread, where
+    Python cannot install signal handlers, the block runs with the handlers it has.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -73,11 +95,14 @@ def stop_between_steps(stream=None):
     out = sys.stderr if stream is None else stream
 
     def ask(signum, frame):
-        if _requested.is_set():
-            raise KeyboardInterrupt
+        name = signal.Signals(signum).name
+        _received.append(name)
+        if len(_received) > 1:
+            raise KeyboardInterrupt(name)
         _requested.set()
         print(
-            "knotmm: stopping after the current step (interrupt again to stop at once)",
+            f"knotmm: {describe_signal(name)} received: stopping after the current step "
+            f"(interrupt again to stop at once)",
             file=out,
             flush=True,
         )
@@ -85,6 +110,7 @@ def stop_between_steps(stream=None):
     signals = [signal.SIGINT, signal.SIGTERM]
     previous = {sig: signal.getsignal(sig) for sig in signals}
     _requested.clear()
+    _received.clear()
     for sig in signals:
         signal.signal(sig, ask)
     try:

@@ -1,10 +1,10 @@
 """Output writers scheduled by simulated time.
 
-A knotmm reporter has ``next_report_time(simulation) -> float`` (tau_d) and
-``report(simulation, state)``; :class:`knotmm.engine.simulation.Simulation` lands its steps exactly
-on those times. Report ``k`` of a reporter with interval ``dt`` is at ``k * dt`` (computed
-from ``k``, never accumulated, so times do not drift). OpenMM's own step-scheduled reporters
-(``describeNextReport``) can be attached to the same simulation.
+Every reporter here is a :class:`knotmm.engine.schedule.TimeScheduled`: report ``k`` at
+``k * interval`` tau_d, and :class:`knotmm.engine.simulation.Simulation` lands its steps
+exactly on those times. OpenMM's own step-scheduled reporters (``describeNextReport``) can
+be attached to the same simulation. The checkpoint reporter is in
+:mod:`knotmm.engine.checkpoint`; the file formats are :mod:`knotmm.io`'s.
 
 Every writer flushes after each report, so a killed run keeps every finished frame and row.
 """
@@ -14,48 +14,25 @@ from __future__ import annotations
 import csv
 import math
 import sys
+import time
 
 import numpy as np
 import openmm.app
 from openmm import unit
 
-__all__ = ["DCDReporter", "ObservablesReporter", "ProgressReporter", "OBSERVABLE_COLUMNS"]
+from knotmm.engine.schedule import TimeScheduled
+from knotmm.io.observables import OBSERVABLE_COLUMNS
 
-#: Columns of ``observables.csv`` (times in tau_d, lengths in d, energies in F0 d).
-OBSERVABLE_COLUMNS = (
-    "time",
-    "step",
-    "com_x",
-    "com_y",
-    "com_z",
-    "e_bond",
-    "e_bend",
-    "e_steric",
-    "e_gravity",
-    "e_total",
-    "max_bond",
-    "timestep",
-    "evaluations",
-)
+__all__ = [
+    "DCDReporter",
+    "KnotTypeWatch",
+    "ObservablesReporter",
+    "ProgressReporter",
+    "OBSERVABLE_COLUMNS",
+]
 
 
-class _TimeScheduled:
-    """Reports at ``(first_index + k) * interval`` for ``k = 0, 1, ...``."""
-
-    def __init__(self, interval: float, first_index: int = 0):
-        if not interval > 0:
-            raise ValueError(f"interval={interval!r}: must be > 0 (tau_d)")
-        self.interval = float(interval)
-        self.index = int(first_index)
-
-    def next_report_time(self, simulation) -> float:
-        return self.index * self.interval
-
-    def _advance(self) -> None:
-        self.index += 1
-
-
-class DCDReporter(_TimeScheduled):
+class DCDReporter(TimeScheduled):
     """Write frames to a DCD file in Angstrom (1 d = 10 A), without a unit cell.
 
     Frame ``k`` is the state at ``t = k * interval``. Uses OpenMM's ``DCDFile``, which can
@@ -86,16 +63,20 @@ class DCDReporter(_TimeScheduled):
         )
 
     def report(self, simulation, state) -> None:
-        self._dcd.writeModel(simulation.positions * unit.nanometer)
-        self._file.flush()
-        self._advance()
+        try:
+            self._dcd.writeModel(simulation.positions * unit.nanometer)
+            self._file.flush()
+        except OSError as exc:  # a full disk: say which file
+            exc.filename = exc.filename or self.path
+            raise
+        self.advance()
 
     def close(self) -> None:
         if not self._file.closed:
             self._file.close()
 
 
-class ObservablesReporter(_TimeScheduled):
+class ObservablesReporter(TimeScheduled):
     """Append a row of :data:`OBSERVABLE_COLUMNS` to a CSV file at every report time."""
 
     def __init__(self, path, interval, append=False, first_index=0):
@@ -127,17 +108,38 @@ class ObservablesReporter(_TimeScheduled):
             f"{timestep:.6g}",
             simulation.n_evaluations,
         ]
-        self._writer.writerow(row)
-        self._file.flush()
-        self._advance()
+        try:
+            self._writer.writerow(row)
+            self._file.flush()
+        except OSError as exc:
+            exc.filename = exc.filename or self.path
+            raise
+        self.advance()
 
     def close(self) -> None:
         if not self._file.closed:
             self._file.close()
 
 
-class ProgressReporter(_TimeScheduled):
-    """A progress bar (tqdm) over simulated time; by default only drawn on a terminal."""
+class ProgressReporter(TimeScheduled):
+    """Progress over simulated time: a bar (tqdm) on a terminal, else a line now and then.
+
+    Parameters
+    ----------
+    start, end : float
+        Simulated time of the start and the end of the run, in tau_d.
+    interval : float, optional
+        How often progress is looked at, in tau_d; default (end - start) / 200.
+    enabled : bool, optional
+        True: always a bar; False: nothing; None (default): a bar when ``stream`` is a
+        terminal, else one line (``knotmm: t = 20 / 200 tau_d (10 %), ...``) each time
+        another 10 % of the run is done or 30 s have passed since the last line.
+    stream : file, optional
+        Default: standard error.
+    """
+
+    #: Seconds between two progress lines, at most (when no 10 % step comes sooner).
+    line_seconds = 30.0
 
     def __init__(self, start: float, end: float, interval: float | None = None,
                  enabled: bool | None = None, stream=None):
@@ -147,9 +149,9 @@ class ProgressReporter(_TimeScheduled):
         self.start = start
         self.end = end
         self._bar = None
-        if enabled is None:
-            enabled = hasattr(stream, "isatty") and stream.isatty()
-        if enabled:
+        self._stream = None
+        terminal = hasattr(stream, "isatty") and stream.isatty()
+        if enabled or (enabled is None and terminal):
             from tqdm import tqdm
 
             self._bar = tqdm(
@@ -160,14 +162,37 @@ class ProgressReporter(_TimeScheduled):
                 dynamic_ncols=True,
                 bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} tau_d [{elapsed}<{remaining}]",
             )
+        elif enabled is None:
+            self._stream = stream
+            self._wall0 = self._last_line = time.monotonic()
+            self._tenths = 0
         self._shown = 0.0
 
     def report(self, simulation, state) -> None:
+        done = min(simulation.time, self.end) - self.start
         if self._bar is not None:
-            done = min(simulation.time, self.end) - self.start
             self._bar.update(done - self._shown)
             self._shown = done
-        self._advance()
+        elif self._stream is not None and self.end > self.start:
+            self._line(done)
+        self.advance()
+
+    def _line(self, done: float) -> None:
+        now = time.monotonic()
+        fraction = done / (self.end - self.start)
+        tenths = int(math.floor(fraction * 10 + 1e-9))
+        if tenths <= self._tenths and now - self._last_line < self.line_seconds:
+            return
+        self._tenths = max(self._tenths, tenths)
+        self._last_line = now
+        elapsed = now - self._wall0
+        left = f", about {elapsed * (1 - fraction) / fraction:.0f} s left" if fraction > 0 else ""
+        print(
+            f"knotmm: t = {self.start + done:g} / {self.end:g} tau_d ({100 * fraction:.0f} %), "
+            f"{elapsed:.0f} s{left}",
+            file=self._stream,
+            flush=True,
+        )
 
     def close(self) -> None:
         if self._bar is not None:
@@ -175,7 +200,7 @@ class ProgressReporter(_TimeScheduled):
             self._bar = None
 
 
-class KnotTypeWatch(_TimeScheduled):
+class KnotTypeWatch(TimeScheduled):
     """Check the knot type every ``interval`` tau_d (topoly) and react to a change.
 
     A bead model can let one strand pass through another when the strands are pressed
@@ -192,14 +217,27 @@ class KnotTypeWatch(_TimeScheduled):
         In tau_d.
     expected : str or None
         Chiral knot type at the start, as :func:`knotmm.knots.identify.identify_knot` with
-        ``chiral=True`` names it (``"+3_1"``); None: taken from the first check. Chirality
-        counts: strand passages that turn a right-handed trefoil into a left-handed one are
-        reported.
+        ``chiral=True`` names it (``"+3_1"``, :mod:`knotmm.knots.chirality`); None: taken
+        from :meth:`identify_start` or else the first check. Chirality counts: strand
+        passages that turn a right-handed trefoil into a left-handed one are reported.
     on_change : {"warn", "stop"}
     first_index : int
     identify : callable, optional
         ``positions -> name``; default: a :class:`knotmm.knots.worker.IsolatedKnotIdentifier`
-        (topoly in a worker process, so that a crash in it cannot end the run).
+        (topoly in a worker process, so that a crash in it cannot end the run), started
+        at once in the background.
+
+    Attributes
+    ----------
+    checks : int
+        Checks that ran (an identification that gave no answer, its worker having crashed
+        or timed out, is not counted).
+    skipped : int
+        Checks that gave no answer.
+    dropped : int
+        Checks still under way when an interrupted run closed the watch.
+    start_type : str or None
+        The starting shape's type, once :meth:`identify_start`'s identification is back.
     """
 
     def __init__(self, interval, expected=None, on_change="warn", first_index=0,
@@ -209,16 +247,38 @@ class KnotTypeWatch(_TimeScheduled):
             from knotmm.knots.worker import IsolatedKnotIdentifier
 
             identify = IsolatedKnotIdentifier(chiral=True)
+            identify.start()  # off the run's path: the worker imports topoly meanwhile
         self._identify = identify
+        self._start = None
+        self.start_type: str | None = None
         self._pending: list = []
         self.current = expected
         self.on_change = on_change
         self.changes: list[tuple[float, str | None, str | None]] = []
         self.checks = 0
+        self.skipped = 0
         self.dropped = 0
 
+    def identify_start(self, positions) -> None:
+        """Identify the starting shape beside the run (not counted as a check).
+
+        Its result is :attr:`start_type` and, unless ``expected`` was given, the type that
+        later checks are compared with.
+        """
+        submit = getattr(self._identify, "submit", None)
+        if submit is None:
+            self._start_found(self._identify(positions))
+        else:
+            self._start = submit(positions)
+
+    def _start_found(self, found: str | None) -> None:
+        self._start = None
+        self.start_type = found
+        if self.current is None and found != "unknown":
+            self.current = found
+
     def report(self, simulation, state) -> None:
-        self._advance()
+        self.advance()
         self.collect(wait=False)
         submit = getattr(self._identify, "submit", None)
         if submit is None:  # a plain callable: check now
@@ -230,6 +290,10 @@ class KnotTypeWatch(_TimeScheduled):
 
     def collect(self, wait: bool = True) -> None:
         """Judge finished identifications in order (all of them with ``wait``)."""
+        if self._start is not None:
+            if not (wait or self._start.done()):
+                return  # the start's type comes first
+            self._start_found(self._start.result())
         while self._pending and (wait or self._pending[0][2].done()):
             when, step, handle = self._pending.pop(0)
             self._judge(when, step, handle.result())
@@ -237,8 +301,11 @@ class KnotTypeWatch(_TimeScheduled):
     def _judge(self, when: float, step: int, found: str | None) -> None:
         from knotmm.errors import KnotTypeChanged
 
+        if found is None:  # not identified (the worker crashed or timed out)
+            self.skipped += 1
+            return
         self.checks += 1
-        if found is None or found == "unknown":
+        if found == "unknown":
             return
         if self.current is None:
             self.current = found
@@ -272,6 +339,7 @@ class KnotTypeWatch(_TimeScheduled):
         finally:
             self.dropped += len(self._pending)
             self._pending.clear()
+            self._start = None
             closer = getattr(self._identify, "close", None)
             if closer is not None:
                 closer()

@@ -15,6 +15,11 @@ steps. The loop, in the style of HOOMD-blue's ``Simulation.run``::
         step += 1; time += dt
         reporters whose step or time has come report (Context step count and time updated)
 
+:meth:`Simulation.from_config` builds one from a run configuration;
+:meth:`Simulation.saveCheckpoint` and :meth:`Simulation.loadCheckpoint` save and restore its
+whole state (positions, time, step, counters, integrator and random state), so that a run
+goes on bit for bit after a stop (``docs/architecture.md``).
+
 One "step" is one accepted step of the integrator, whatever its length. Positions are
 float64 and live in :attr:`Simulation.positions`; the Context only sees them, shifted by
 their centre of mass, when forces are needed (translation does not change the forces, and
@@ -32,21 +37,15 @@ from openmm import unit
 
 from knotmm.dynamics.deterministic import RK23, Integrator, StepSizeUnderflow
 from knotmm.dynamics.mobility import rpy_velocities
+from knotmm.engine.checkpoint import read_checkpoint, write_checkpoint
 from knotmm.engine.interrupt import raise_if_requested
-from knotmm.errors import ConfigError, SimulationFault
-from knotmm.model.system import (
-    FORCE_GROUPS,
-    ChainModel,
-    build_system,
-    build_topology,
-    ring_bonds,
-    site_positions,
-)
+from knotmm.errors import ConfigError, SimulationFault, TrajectoryFileError
+from knotmm.model.system import FORCE_GROUPS, ChainModel, chain_system, site_positions
+from knotmm.model.topology import bead_topology, ring_bonds
 
 __all__ = ["Simulation", "select_platform"]
 
 log = logging.getLogger(__name__)
-
 
 
 def select_platform(name: str, n_beads: int, threads: int = 1):
@@ -124,8 +123,8 @@ class Simulation:
         pos = np.array(positions, dtype=np.float64)
         self.mobility_threads = int(mobility_threads)
         self.model = ChainModel() if model is None else model
-        self.system = build_system(pos, self.model)
-        self.topology = build_topology(pos.shape[0])
+        self.system = chain_system(pos, self.model)
+        self.topology = bead_topology(pos.shape[0])
         self.integrator = RK23(0.01) if integrator is None else integrator
         plat, props = select_platform(platform, pos.shape[0], threads)
         # The OpenMM integrator is never stepped: knotmm integrates. It holds the step size
@@ -142,8 +141,104 @@ class Simulation:
         self.n_evaluations = 0
         self.reporters: list = []
         self.last_velocity: np.ndarray | None = None
+        self._held_stale = False
         self._check_state(self.positions, initial=True)
         self._sync_context()
+
+    @classmethod
+    def from_config(cls, cfg, positions=None) -> Simulation:
+        """The Simulation a run configuration describes.
+
+        Parameters
+        ----------
+        cfg : knotmm.config.RunConfig
+            Model (``[model]``), integrator and platform (``[run]``) settings.
+        positions : array_like, shape (n_beads, 3), in d, optional
+            Starting positions; default: the template of ``cfg`` (``[knot]``), built by
+            :func:`knotmm.shapes.builder.build_template`.
+
+        Raises
+        ------
+        ConfigError, TemplateError
+            A bad integrator, platform or template; nothing is written.
+        """
+        from knotmm.dynamics.registry import integrator_from_config
+
+        integrator = integrator_from_config(cfg)
+        if positions is None:
+            from knotmm.shapes.builder import build_template
+
+            positions = build_template(cfg).positions
+        return cls(
+            positions,
+            ChainModel.from_config(cfg),
+            integrator,
+            platform=cfg["run.platform"],
+            threads=cfg["run.threads"],
+            max_bond_length=cfg["run.max_bond_length"],
+            mobility_threads=cfg["run.mobility_threads"],
+        )
+
+    # -- checkpoints (OpenMM's names) -------------------------------------------------------
+    def saveCheckpoint(self, path, extra: dict | None = None) -> None:  # noqa: N802
+        """Save the whole state to ``path`` atomically (:mod:`knotmm.engine.checkpoint`).
+
+        The file holds positions, time, step, velocity evaluations, the integrator's name
+        and state (step size, controller memory, random state) and the velocity it holds
+        for the current positions, if any. ``extra`` (a dict of JSON values: a run's output
+        counters, ...) rides along and is returned by :meth:`loadCheckpoint`.
+        """
+        write_checkpoint(path, {
+            "positions": self.positions,
+            "time": self.time,
+            "step": self.currentStep,
+            "evaluations": self.n_evaluations,
+            "integrator": self.integrator.name,
+            "integrator_state": self.integrator.get_state(),
+            "counters": extra or {},
+            "velocity": self._held_velocity(),
+        })
+
+    def loadCheckpoint(self, path) -> dict:  # noqa: N802
+        """Restore the state saved by :meth:`saveCheckpoint`; return its ``extra`` dict.
+
+        The simulation goes on exactly as the saved one would have: same positions, time,
+        step, evaluation count, step size and random stream.
+
+        Raises
+        ------
+        TrajectoryFileError
+            The file is missing or damaged, or it was written for another integrator or
+            bead count.
+        """
+        state = read_checkpoint(path)
+        if state["integrator"] != self.integrator.name:
+            raise TrajectoryFileError(
+                f"checkpoint {str(path)!r} was written by integrator {state['integrator']!r}, "
+                f"this simulation uses {self.integrator.name!r} (run.integrator); the files do "
+                f"not belong together"
+            )
+        if state["positions"].shape != self.positions.shape:
+            raise TrajectoryFileError(
+                f"checkpoint {str(path)!r} holds {state['positions'].shape[0]} beads, this "
+                f"simulation has {self.n_beads}; the files do not belong together"
+            )
+        self._check_state(state["positions"], initial=True)
+        self.positions = state["positions"]
+        self.integrator.set_state(state["integrator_state"])  # forgets a held velocity
+        if state["velocity"] is not None and hasattr(self.integrator, "_f0"):
+            self.integrator._f0 = state["velocity"]
+        self._held_stale = False
+        self.time = state["time"]
+        self.currentStep = state["step"]
+        self.n_evaluations = state["evaluations"]
+        self._sync_context()
+        return state["counters"]
+
+    def _held_velocity(self) -> np.ndarray | None:
+        """The velocity at the current positions an FSAL integrator (rk23, rkc2) reuses."""
+        held = getattr(self.integrator, "_f0", None)
+        return None if held is None or self._held_stale else np.asarray(held)
 
     # -- physics ------------------------------------------------------------------------
     def forces(self, positions: np.ndarray) -> np.ndarray:
@@ -224,7 +319,11 @@ class Simulation:
                 f"Hint: the forces are too stiff here (beads pressed together?); the last good "
                 f"state is kept"
             ) from None
-        self._check_state(y_new, dt=dt)
+        try:
+            self._check_state(y_new, dt=dt)
+        except SimulationFault:
+            self._held_stale = True  # the integrator holds the velocity of the bad state
+            raise
         self.positions = y_new
         self.time += dt
         self.currentStep += 1
@@ -238,6 +337,7 @@ class Simulation:
         self._check_state(pos, initial=True)
         self.positions = pos
         self.integrator.reset()
+        self._held_stale = False
 
     def step(self, steps: int) -> None:
         """Take ``steps`` accepted integrator steps (OpenMM's meaning of ``step``)."""

@@ -2,7 +2,8 @@
 
 The content goes to a temporary file in the same directory, is flushed to disk (fsync) and
 then renamed over the target, so a process killed at any moment (SIGKILL included) leaves
-a whole file behind.
+a whole file behind. An ``OSError`` (a full disk, a read-only directory) names the target
+file, not the temporary one.
 """
 
 from __future__ import annotations
@@ -19,17 +20,23 @@ __all__ = ["write_atomic", "write_text_atomic"]
 def write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) -> None:
     """Call ``write(binary_file)`` on a temporary file, then rename it to ``path``."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.chmod(tmp, 0o644)
     try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as exc:
+        exc.filename = str(path)  # name the file meant, not a temporary one
+        raise
+    try:
+        os.chmod(tmp, 0o644)
         with os.fdopen(fd, "wb") as fh:
             write(fh)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and exc.filename in (None, tmp):
+            exc.filename = str(path)
         raise
 
 

@@ -1,11 +1,10 @@
-"""PDB files of bead chains: the topology every knotmm file shares, and a writer.
+"""PDB files of bead chains, written with the one bead Topology.
 
-A knotmm chain is one chain of beads, one residue ``BEA`` per bead, one atom ``B`` per
-residue (element carbon, only so that viewers draw it), bead ``i`` bonded to bead ``i + 1``
-and the last bead bonded to the first. The residue name is non-standard on purpose: mdtraj
-writes ``CONECT`` records only for non-standard residues, and without them VMD draws no
-chain. Lengths are converted from model units (d) to Angstrom (1 d = 10 A) here, at the file
-boundary, and no unit cell is written (the runs are not periodic).
+Every knotmm PDB holds the Topology of :func:`knotmm.model.topology.bead_topology` (one chain
+of ``BEA`` residues, one atom ``B`` each, the ring closed from the last bead to the first),
+converted to mdtraj's form by :func:`mdtraj_topology`. Lengths are converted from model units
+(d) to Angstrom (1 d = 10 A) here, at the file boundary, and no unit cell is written (the
+runs are not periodic). See ``docs/model.md``.
 
 Examples
 --------
@@ -25,57 +24,23 @@ from pathlib import Path
 
 import numpy as np
 
+from knotmm.model.topology import bead_topology
 from knotmm.units import ANGSTROM_PER_D
 
-__all__ = ["BEAD_RESIDUE", "BEAD_ATOM", "bead_topology", "write_pdb"]
+__all__ = ["mdtraj_topology", "write_pdb"]
 
 logger = logging.getLogger(__name__)
 
-#: Residue name of a bead (non-standard, so that mdtraj writes CONECT records).
-BEAD_RESIDUE = "BEA"
-#: Atom name of a bead.
-BEAD_ATOM = "B"
 # mdtraj keeps coordinates in nm; a PDB file holds Angstrom.
 _NM_PER_ANGSTROM = 0.1
 
 
-def bead_topology(n_beads: int, closed: bool = True):
-    """The mdtraj Topology of a closed bead chain.
-
-    Parameters
-    ----------
-    n_beads : int
-        Number of beads, at least 3 for a closed chain (2 for an open one).
-    closed : bool, optional
-        If true (knotmm's chains), bead ``n_beads - 1`` is bonded back to bead 0.
-
-    Returns
-    -------
-    mdtraj.Topology
-        One chain, ``n_beads`` residues ``BEA`` numbered from 1, one atom ``B`` (carbon) each,
-        bonds ``i -> i + 1`` and, if ``closed``, ``n_beads - 1 -> 0``.
-    """
+def mdtraj_topology(n_beads: int, closed: bool = True):
+    """The bead Topology (:func:`knotmm.model.topology.bead_topology`, same arguments) as an
+    mdtraj Topology."""
     import mdtraj  # noqa: PLC0415 - heavy import kept out of module import
 
-    if isinstance(n_beads, bool) or not isinstance(n_beads, (int, np.integer)):
-        raise ValueError(f"n_beads={n_beads!r}: expected an integer")
-    minimum = 3 if closed else 2
-    if n_beads < minimum:
-        raise ValueError(
-            f"n_beads={n_beads}: a {'closed' if closed else 'open'} chain needs "
-            f"at least {minimum} beads"
-        )
-    top = mdtraj.Topology()
-    chain = top.add_chain()
-    atoms = []
-    for i in range(int(n_beads)):
-        residue = top.add_residue(BEAD_RESIDUE, chain, resSeq=i + 1)
-        atoms.append(top.add_atom(BEAD_ATOM, mdtraj.element.carbon, residue))
-    for i in range(int(n_beads) - 1):
-        top.add_bond(atoms[i], atoms[i + 1])
-    if closed:
-        top.add_bond(atoms[-1], atoms[0])
-    return top
+    return mdtraj.Topology.from_openmm(bead_topology(n_beads, closed=closed))
 
 
 def write_pdb(path, positions, closed: bool = True) -> None:
@@ -111,7 +76,7 @@ def write_pdb(path, positions, closed: bool = True) -> None:
     if not np.all(np.isfinite(x)):
         raise ValueError("positions contains non-finite coordinates")
     n_beads = x.shape[1]
-    top = bead_topology(n_beads, closed=closed)
+    top = mdtraj_topology(n_beads, closed=closed)
     xyz_nm = x * ANGSTROM_PER_D * _NM_PER_ANGSTROM
     traj = mdtraj.Trajectory(xyz_nm, top)  # no unit cell
     path = Path(path)

@@ -15,13 +15,8 @@ Examples
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
-import os
-import re
-import sys
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,15 +25,13 @@ import numpy as np
 
 from knotmm.config import read_toml
 from knotmm.errors import ConfigError, TrajectoryFileError
+from knotmm.io.dcd import read_dcd
+from knotmm.io.rundir import RUN_FILE, TOPOLOGY_FILE, TRAJECTORY_FILE
 from knotmm.units import angstrom_to_d
 
 __all__ = ["RunData", "load_run", "config_value"]
 
 logger = logging.getLogger(__name__)
-
-TRAJECTORY_NAME = "trajectory.dcd"
-TOPOLOGY_NAME = "topology.pdb"
-RUN_FILE_NAME = "run.toml"
 
 
 @dataclass
@@ -119,53 +112,6 @@ def config_value(config: dict, dotted: str, default: Any = None) -> Any:
     return node
 
 
-@contextlib.contextmanager
-def _captured_c_stdout(sink: list[str]):
-    """Collect what C code prints to descriptor 1 (mdtraj's DCD plugin) into ``sink``."""
-    try:
-        sys.stdout.flush()
-        saved = os.dup(1)
-    except (OSError, ValueError):  # no usable descriptor 1: nothing to capture
-        yield
-        return
-    with tempfile.TemporaryFile(mode="w+b") as tmp:
-        os.dup2(tmp.fileno(), 1)
-        try:
-            yield
-        finally:
-            with contextlib.suppress(OSError, ValueError):
-                sys.stdout.flush()
-            os.dup2(saved, 1)
-            os.close(saved)
-            tmp.seek(0)
-            sink.append(tmp.read().decode("utf-8", "replace"))
-
-
-def _read_dcd(path: Path) -> tuple[np.ndarray, list[str]]:
-    """Read a DCD's coordinates (Angstrom, float32) and the reader's complaints."""
-    from mdtraj.formats import DCDTrajectoryFile
-
-    messages: list[str] = []
-    notes: list[str] = []
-    try:
-        with _captured_c_stdout(messages), DCDTrajectoryFile(str(path)) as fh:
-            xyz, _, _ = fh.read()
-    except OSError as exc:
-        raise TrajectoryFileError(
-            f"{path}: cannot be read as a DCD trajectory ({exc}); the file is empty, "
-            "truncated inside its header or not a DCD: re-run or give the right file"
-        ) from None
-    text = " ".join(messages)
-    claimed = re.search(r"claims\s+(\d+)\s+frames.*?actually\s+(\d+)\s+frames", text, re.S)
-    if claimed:
-        notes.append(
-            f"{path.name}: the header claims {claimed.group(1)} frames but only "
-            f"{claimed.group(2)} are complete (the run was probably interrupted); "
-            "the partial frame was dropped"
-        )
-    return np.asarray(xyz), notes
-
-
 def _find_one(directory: Path, pattern: str, preferred: str) -> Path | None:
     if (directory / preferred).is_file():
         return directory / preferred
@@ -178,13 +124,13 @@ def _locate(path: Path, topology) -> tuple[Path, Path, Path | None, Path]:
     if not path.exists():
         raise TrajectoryFileError(
             f"{path}: no such run directory or trajectory file; give a run directory "
-            f"(with {TRAJECTORY_NAME}, {TOPOLOGY_NAME}, {RUN_FILE_NAME}) or a DCD file"
+            f"(with {TRAJECTORY_FILE}, {TOPOLOGY_FILE}, {RUN_FILE}) or a DCD file"
         )
     if path.is_dir():
-        traj = _find_one(path, "*.dcd", TRAJECTORY_NAME)
+        traj = _find_one(path, "*.dcd", TRAJECTORY_FILE)
         if traj is None:
             raise TrajectoryFileError(
-                f"{path}: no {TRAJECTORY_NAME} in this directory (and not exactly one "
+                f"{path}: no {TRAJECTORY_FILE} in this directory (and not exactly one "
                 "*.dcd); is it a run directory? give the DCD file itself"
             )
         directory = path
@@ -202,18 +148,18 @@ def _locate(path: Path, topology) -> tuple[Path, Path, Path | None, Path]:
             raise TrajectoryFileError(f"--topology {top}: no such file; give the run's PDB")
     else:
         top = None
-        for candidate in (traj.with_suffix(".pdb"), directory / TOPOLOGY_NAME):
+        for candidate in (traj.with_suffix(".pdb"), directory / TOPOLOGY_FILE):
             if candidate.is_file():
                 top = candidate
                 break
         if top is None:
-            top = _find_one(directory, "*.pdb", TOPOLOGY_NAME)
+            top = _find_one(directory, "*.pdb", TOPOLOGY_FILE)
         if top is None:
             raise TrajectoryFileError(
                 f"{traj}: no topology found (looked for {traj.with_suffix('.pdb').name} and "
-                f"{TOPOLOGY_NAME} beside it); give one with --topology PDB"
+                f"{TOPOLOGY_FILE} beside it); give one with --topology PDB"
             )
-    run_file = directory / RUN_FILE_NAME
+    run_file = directory / RUN_FILE
     return traj, top, (run_file if run_file.is_file() else None), directory
 
 
@@ -285,14 +231,14 @@ def load_run(path, frame_interval: float | None = None, topology=None) -> RunDat
         dt = _check_interval(frame_interval, "--frame-interval")
         if from_file is not None and not math.isclose(float(from_file), dt, rel_tol=1e-9):
             logger.warning("frame interval %g given; %s says %s", dt, run_file, from_file)
-            notes.append(f"frame interval {dt:g} tau_d given; {RUN_FILE_NAME} says {from_file}")
+            notes.append(f"frame interval {dt:g} tau_d given; {RUN_FILE} says {from_file}")
     elif from_file is not None:
         dt = _check_interval(from_file, f"{run_file}: output.frame_interval")
     else:
         where = (
             f"{run_file} has no output.frame_interval"
             if run_file
-            else (f"no {RUN_FILE_NAME} beside {traj_path}")
+            else (f"no {RUN_FILE} beside {traj_path}")
         )
         raise ConfigError(
             f"{where}: give the time between frames with --frame-interval T (in tau_d)"
@@ -307,7 +253,7 @@ def load_run(path, frame_interval: float | None = None, topology=None) -> RunDat
     if top.n_atoms == 0:
         raise TrajectoryFileError(f"{top_path}: the topology has no atoms; give the run's PDB")
 
-    xyz, dcd_notes = _read_dcd(traj_path)
+    xyz, dcd_notes = read_dcd(traj_path)
     notes += dcd_notes
     if xyz.ndim != 3 or xyz.shape[0] == 0:
         raise TrajectoryFileError(

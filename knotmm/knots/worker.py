@@ -1,89 +1,292 @@
-"""Knot identification in a separate worker process, for checks during long runs.
+"""Knot identification in a worker process of knotmm's own.
 
-topoly's polynomial code runs in the Python process and has crashed the interpreter on
-some inputs (segmentation faults on symmetric projections, see :mod:`knotmm.knots.identify`). A
-crash there must not take a running simulation with it, so the run's knot-type watch calls
-topoly in one persistent worker process: started at the first check (about a second), then
-about 40 ms a check. If the worker dies, the check reports ``None`` (not checked), a warning
-is logged, and the next check starts a new worker. Where a process may not start children
-(a daemonic worker of some cluster schedulers), checks run in-process.
+topoly must never run in a process that simulates, analyses or belongs to someone else (a
+Dask worker, a notebook kernel): it closes file descriptor 0, prints from C, installs signal
+handlers, and has crashed the interpreter on some inputs (segmentation faults on symmetric
+projections, see :mod:`knotmm.knots.homfly`); its import alone costs seconds. So every knot
+identification goes to one persistent worker process, started as its own module::
+
+    python -P -m knotmm.knots.worker        (stdin: requests, stdout: replies)
+
+It never imports the caller's ``__main__`` (unlike a multiprocessing "spawn" child), so a
+script without an ``if __name__ == "__main__":`` guard is safe. The protocol is a pair of
+pipes carrying pickled messages (:class:`multiprocessing.connection.Connection`):
+
+* request ``(seq, positions, options)``: ``positions`` float64 (n_beads, 3), ``options`` the
+  keyword arguments of :func:`knotmm.knots.homfly.identify_here`;
+* reply ``(seq, name, messages)``: the knot name (or None when the worker could not
+  compute it) and the warnings logged meanwhile (logged again here);
+* end of file on the request pipe (the caller closed it, or died, even by SIGKILL): the
+  worker exits.
+
+The worker starts in the background (:meth:`WorkerProcess.start`: a fork and exec, well
+under a millisecond here) and imports topoly at once, off the caller's path; requests queue
+in the pipe meanwhile and are answered in order. If it dies, the identifications under way
+report ``None`` (not checked), a warning is logged, and the next request starts a new
+worker. The worker runs in a session of its own and ignores SIGINT: Ctrl-C on a terminal
+goes to the calling process, which decides how a run stops.
 """
 
 from __future__ import annotations
 
 import logging
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures import TimeoutError as FutureTimeout
-from concurrent.futures.process import BrokenProcessPool
+import os
+import subprocess
+import sys
+import threading
+import time
+from multiprocessing.connection import Connection
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["IsolatedKnotIdentifier"]
-
-
-class _Done:
-    def __init__(self, value):
-        self._value = value
-
-    def done(self) -> bool:
-        return True
-
-    def result(self):
-        return self._value
-
-
-class _Pending:
-    def __init__(self, owner, future):
-        self._owner = owner
-        self._future = future
-
-    def done(self) -> bool:
-        return self._future.done()
-
-    def result(self):
-        return self._owner._collect(self._future)
+__all__ = ["IsolatedKnotIdentifier", "WorkerProcess", "main", "shared_worker"]
 
 log = logging.getLogger(__name__)
 
+#: Seconds to wait for one identification before giving up on it (and on the worker).
+DEFAULT_TIMEOUT = 300.0
 
-def _watch_parent(parent_pid: int) -> None:
-    """In the worker: exit as soon as the simulating process is gone (even after SIGKILL).
 
-    Ctrl-C on a terminal reaches the worker too; it is ignored here, since the simulating
-    process decides how a run stops (and shuts the worker down).
+class WorkerProcess:
+    """The client side of one worker process: send chains, collect names in order.
+
+    Thread-safe. The process is started by :meth:`start` or by the first request, and
+    started again after it died.
     """
-    import os
-    import signal
-    import threading
-    import time
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    def __init__(self, timeout: float = DEFAULT_TIMEOUT):
+        self.timeout = float(timeout)
+        self._lock = threading.RLock()
+        self._proc: subprocess.Popen | None = None
+        self._send: Connection | None = None
+        self._recv: Connection | None = None
+        self._generation = 0  # bumped when a worker is given up: its requests give None
+        self._seq = 0
+        self._waiting: set[int] = set()
+        self._results: dict[int, str | None] = {}
+        self._pid = os.getpid()  # a forked child must not use (or kill) its parent's worker
 
-    def watch():
-        while True:
-            time.sleep(0.5)
-            if os.getppid() != parent_pid:
-                os._exit(0)
+    # -- process ----------------------------------------------------------------------------
+    def _command(self) -> list[str]:
+        flags = ["-P"] if sys.version_info >= (3, 11) else []  # no cwd on sys.path
+        return [sys.executable, *flags, "-m", "knotmm.knots.worker"]
 
-    threading.Thread(target=watch, name="knotmm-parent-watch", daemon=True).start()
+    def _environment(self) -> dict[str, str]:
+        env = dict(os.environ)
+        root = str(Path(__file__).resolve().parents[2])  # the directory that holds knotmm
+        paths = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
+        env["PYTHONPATH"] = os.pathsep.join([root, *[p for p in paths if p != root]])
+        return env
+
+    @property
+    def running(self) -> bool:
+        return self._proc is not None and self._proc.poll() is None
+
+    def _forget_if_forked(self) -> None:
+        """In a child forked from the owner: drop the inherited pipes, leave the worker."""
+        if os.getpid() != self._pid:
+            for conn in (self._send, self._recv):
+                if conn is not None:
+                    conn.close()
+            self._proc = self._send = self._recv = None
+            self._waiting.clear()
+            self._results.clear()
+            self._generation += 1
+            self._pid = os.getpid()
+
+    def start(self) -> bool:
+        """Start the worker in the background unless it runs; False if it cannot start."""
+        with self._lock:
+            self._forget_if_forked()
+            if self._proc is not None:
+                return True
+            if not sys.executable:
+                log.warning("knot identification needs a Python executable (sys.executable "
+                            "is empty); knot types are not checked")
+                return False
+            try:
+                proc = subprocess.Popen(
+                    self._command(),
+                    stdin=subprocess.PIPE,
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.DEVNULL,
+                    env=self._environment(),
+                    close_fds=True,
+                    # terminal signals (Ctrl-C) go to the caller, which decides how to stop;
+                    # the worker leaves when its request pipe closes
+                    start_new_session=True,
+                )
+            except OSError as exc:
+                log.warning("could not start the knot-identification worker (%s); knot "
+                            "types are not checked", exc)
+                return False
+            self._send = Connection(os.dup(proc.stdin.fileno()), readable=False)
+            self._recv = Connection(os.dup(proc.stdout.fileno()), writable=False)
+            proc.stdin.close()
+            proc.stdout.close()
+            self._proc = proc
+            return True
+
+    def _give_up(self, why: str | None) -> None:
+        """Drop the worker; the requests under way give None."""
+        if why:
+            log.warning("%s; the knot identifications under way are skipped", why)
+        self._generation += 1
+        self._waiting.clear()
+        self._results.clear()
+        for conn in (self._send, self._recv):
+            if conn is not None:
+                conn.close()
+        self._send = self._recv = None
+        proc, self._proc = self._proc, None
+        if proc is not None:
+            if proc.poll() is None:
+                proc.kill()
+            try:
+                proc.wait(timeout=1.0)
+            except subprocess.TimeoutExpired:  # pragma: no cover - a kill not yet effective
+                pass
+
+    def close(self) -> None:
+        """Stop the worker at once (requests under way give None); restarted when needed.
+
+        An idle worker leaves on the closed pipe by itself; a busy one is killed. Never
+        waits for an identification.
+        """
+        with self._lock:
+            self._forget_if_forked()
+            if self._proc is None:
+                return
+            if self._waiting:
+                self._give_up(None)
+                return
+            for conn in (self._send, self._recv):
+                conn.close()
+            self._send = self._recv = None
+            proc, self._proc = self._proc, None
+            self._generation += 1
+            try:
+                proc.wait(timeout=0.5)  # an idle worker exits on end of file within ms
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+    def close_if_busy(self) -> None:
+        """Stop the worker if identifications are under way (they give None), else keep it."""
+        with self._lock:
+            self._forget_if_forked()
+            if self._waiting:
+                self._give_up(None)
+
+    # -- requests ---------------------------------------------------------------------------
+    def submit(self, positions, timeout: float | None = None, **options) -> _Handle:
+        """Send one chain; the returned handle's ``result()`` gives the name (or None).
+
+        Parameters
+        ----------
+        positions : array_like, shape (n_beads, 3)
+        timeout : float, optional
+            Seconds ``result()`` waits before giving up (default: :attr:`timeout`).
+        **options
+            ``chiral``, ``max_cross``, ``minimal`` of
+            :func:`knotmm.knots.identify.identify_knot`.
+        """
+        x = np.ascontiguousarray(positions, dtype=np.float64)
+        timeout = self.timeout if timeout is None else float(timeout)
+        with self._lock:
+            if not self.start():
+                return _Handle(self, -1, -1, timeout)
+            self._seq += 1
+            seq = self._seq
+            try:
+                self._send.send((seq, x, options))
+            except OSError:
+                self._give_up("the knot-identification worker is gone")
+                return _Handle(self, -1, -1, timeout)
+            self._waiting.add(seq)
+            return _Handle(self, self._generation, seq, timeout)
+
+    def identify(self, positions, **options) -> str | None:
+        """Identify one chain and wait for the name (``None``: not identified)."""
+        return self.submit(positions, **options).result()
+
+    def _read(self, timeout: float) -> bool:
+        """Read one reply if one arrives within ``timeout`` s; False on timeout."""
+        try:
+            if not self._recv.poll(timeout):
+                return False
+            seq, name, messages = self._recv.recv()
+        except (EOFError, OSError):
+            code = self._proc.poll() if self._proc is not None else None
+            self._give_up(f"the knot-identification worker stopped (exit code {code})")
+            return True
+        for message in messages:
+            log.warning("%s", message)
+        if seq in self._waiting:
+            self._waiting.discard(seq)
+            self._results[seq] = name
+        return True
+
+    def _done(self, generation: int, seq: int) -> bool:
+        with self._lock:
+            if generation != self._generation or seq not in self._waiting:
+                return True
+            while self._recv is not None and self._recv.poll(0):
+                self._read(0)
+                if generation != self._generation or seq not in self._waiting:
+                    return True
+            return False
+
+    def _result(self, generation: int, seq: int, timeout: float) -> str | None:
+        with self._lock:
+            deadline = time.monotonic() + timeout
+            while generation == self._generation and seq in self._waiting:
+                left = deadline - time.monotonic()
+                if left <= 0 or not self._read(left):
+                    self._give_up(f"knot identification took over {timeout:g} s")
+                    return None
+            if generation != self._generation:
+                return None
+            return self._results.pop(seq, None)
 
 
-def _new_pool() -> ProcessPoolExecutor:
-    import os
+class _Handle:
+    """A request under way: ``done()`` (no waiting) and ``result()`` (waits)."""
 
-    return ProcessPoolExecutor(
-        max_workers=1,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=_watch_parent,
-        initargs=(os.getpid(),),
-    )
+    def __init__(self, worker: WorkerProcess, generation: int, seq: int, timeout: float):
+        self._worker = worker
+        self._generation = generation
+        self._seq = seq
+        self._timeout = timeout
+        self._value: str | None = None
+        self._finished = seq < 0
+
+    def done(self) -> bool:
+        return self._finished or self._worker._done(self._generation, self._seq)
+
+    def result(self) -> str | None:
+        if not self._finished:
+            self._value = self._worker._result(self._generation, self._seq, self._timeout)
+            self._finished = True
+        return self._value
 
 
-def _identify(positions: np.ndarray, chiral: bool) -> str | None:
-    from knotmm.knots.identify import identify_knot
+_SHARED: WorkerProcess | None = None
+_SHARED_LOCK = threading.Lock()
 
-    return identify_knot(positions, chiral=chiral)
+
+def shared_worker() -> WorkerProcess:
+    """The worker process that :func:`knotmm.knots.identify.identify_knot` uses (one per
+    process, started at the first request, stopped at exit)."""
+    global _SHARED
+    with _SHARED_LOCK:
+        if _SHARED is None:
+            import atexit
+
+            _SHARED = WorkerProcess()
+            atexit.register(_SHARED.close)
+        return _SHARED
 
 
 class IsolatedKnotIdentifier:
@@ -95,13 +298,22 @@ class IsolatedKnotIdentifier:
         Name chiral knots with their handedness (``"+3_1"``).
     timeout : float
         Seconds to wait for one identification before giving up on it.
+    own_process : bool
+        False (default): use the process's shared worker (:func:`shared_worker`, the one
+        the template checks used, so a run starts topoly once); true: a worker of its own.
     """
 
-    def __init__(self, chiral: bool = True, timeout: float = 300.0):
+    def __init__(
+        self, chiral: bool = True, timeout: float = DEFAULT_TIMEOUT, own_process: bool = False
+    ):
         self.chiral = chiral
-        self.timeout = timeout
-        self._pool: ProcessPoolExecutor | None = None
-        self._in_process = multiprocessing.current_process().daemon
+        self.own_process = own_process
+        self.timeout = float(timeout)
+        self._worker = WorkerProcess(timeout) if own_process else shared_worker()
+
+    def start(self) -> None:
+        """Start the worker now (in the background), so that the first check is quick."""
+        self._worker.start()
 
     def __call__(self, positions) -> str | None:
         return self.submit(positions).result()
@@ -109,43 +321,78 @@ class IsolatedKnotIdentifier:
     def submit(self, positions):
         """Start an identification and return a handle whose ``result()`` gives the name.
 
-        The worker runs beside the simulation (on another core), so a run does not wait for
-        topoly. In-process mode computes at once.
+        The worker runs beside the caller (on another core), so a run does not wait for
+        topoly.
         """
-        positions = np.array(positions, dtype=np.float64)
-        if not self._in_process:
-            try:
-                if self._pool is None:
-                    self._pool = _new_pool()
-                return _Pending(self, self._pool.submit(_identify, positions, self.chiral))
-            except BrokenProcessPool:
-                log.warning("the knot-identification worker crashed; this check is skipped")
-                self.close()
-                return _Done(None)
-            except (OSError, AssertionError) as exc:  # cannot start a child process here
-                log.info("knot checks run in-process (%s)", exc)
-                self._in_process = True
-        return _Done(_identify(positions, self.chiral))
+        return self._worker.submit(positions, timeout=self.timeout, chiral=self.chiral)
 
     def close(self) -> None:
-        """Stop the worker process (it is started again when needed)."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=False, cancel_futures=True)
-            self._pool = None
+        """Let go of the worker; never waits on it.
 
-    def _collect(self, future) -> str | None:
-        try:
-            return future.result(self.timeout)
-        except BrokenProcessPool:
-            log.warning("the knot-identification worker crashed; this check is skipped")
-        except FutureTimeout:
-            log.warning("knot identification took over %g s; this check is skipped",
-                        self.timeout)
-        self.close()
-        return None
+        A worker of its own is stopped; the shared one is stopped only if it is busy (a
+        run being stopped must not wait for checks it will not judge) and is otherwise
+        left for the next caller (it stops when the process ends).
+        """
+        if self.own_process:
+            self._worker.close()
+        else:
+            self._worker.close_if_busy()
 
     def __del__(self):  # pragma: no cover - best effort at interpreter exit
         try:
-            self.close()
+            if self.own_process:
+                self._worker.close()
         except Exception:  # noqa: BLE001
             pass
+
+
+# -- the worker process ----------------------------------------------------------------------
+class _Collect(logging.Handler):
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+def main() -> int:
+    """Serve identifications on stdin/stdout until end of file (run as ``-m``)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # the protocol moves off descriptors 0 and 1, which topoly closes and prints to
+    requests = Connection(os.dup(0), writable=False)
+    replies = Connection(os.dup(1), readable=False)
+    null = os.open(os.devnull, os.O_RDWR)
+    os.dup2(null, 0)
+    os.dup2(null, 1)
+    os.close(null)
+    sys.stdin = open(os.devnull)  # noqa: SIM115 - for the life of the process
+    sys.stdout = open(os.devnull, "w")  # noqa: SIM115
+
+    from knotmm.knots import homfly
+
+    collect = _Collect()
+    logging.getLogger("knotmm").addHandler(collect)
+    logging.getLogger("knotmm").setLevel(logging.WARNING)
+    homfly.preload()
+    while True:
+        try:
+            seq, positions, options = requests.recv()
+        except (EOFError, OSError):
+            return 0
+        collect.messages = []
+        try:
+            name = homfly.identify_here(positions, **options)
+        except Exception as exc:  # noqa: BLE001 - reported to the caller, never fatal here
+            name = None
+            collect.messages.append(f"knot identification failed: {type(exc).__name__}: {exc}")
+        try:
+            replies.send((seq, name, collect.messages))
+        except OSError:
+            return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,7 +1,7 @@
 """Plots of a sweep's summary: time-scale ratios and toroidal shape against a swept key.
 
-Every function takes the rows of ``summary.csv`` (:func:`knotmm.sweep.core.read_summary` or
-:attr:`knotmm.sweep.core.SweepResult.rows`), draws into the given Axes (a new pyplot figure when
+Every function takes the rows of ``summary.csv`` (:func:`knotmm.sweep.read_summary` or
+:attr:`knotmm.sweep.SweepResult.rows`), draws into the given Axes (a new pyplot figure when
 None) and returns them. :func:`save_sweep_plots` writes the PNG files with matplotlib's Agg
 canvas, without pyplot. Only rows with ``status = "finished"`` and finite values are drawn;
 points that are not a clean periodic state (the knot type changed before the end of the
@@ -13,7 +13,7 @@ ensemble are drawn as small markers with their mean and standard deviation.
 
 Examples
 --------
->>> from knotmm.sweep.core import read_summary
+>>> from knotmm.sweep import read_summary
 >>> rows = read_summary("sweeps/fig3")                          # doctest: +SKIP
 >>> axes = plot_ratios(rows, "knot.beads")                      # doctest: +SKIP
 """
@@ -167,10 +167,8 @@ def _axes(n: int, axes):
 def _group_keys(rows, x: str, keys: Sequence[str] | None) -> list[str]:
     if keys is None:
         skip = {"point", "directory", "status", "error", "replica", "run.seed", x}
+        # swept keys are dotted; the analysis columns are not
         keys = [k for k in (rows[0] if rows else {}) if "." in k and k not in skip]
-        from knotmm.sweep.core import ANALYSIS_COLUMNS
-
-        keys = [k for k in keys if k not in ANALYSIS_COLUMNS]
     if x == "point":
         return []
     return [k for k in keys if k != x and len({str(r.get(k)) for r in rows}) > 1]
@@ -266,16 +264,32 @@ def plot_shape(
     return axes
 
 
-def save_sweep_plots(rows, sweep, directory, dpi: int = 150) -> list[Path]:
+def save_sweep_plots(
+    rows: Sequence[Mapping[str, Any]],
+    directory,
+    x: str,
+    keys: Sequence[str] = (),
+    group_by: Sequence[str] | None = None,
+    log_x: bool | None = None,
+    dpi: int = 150,
+) -> list[Path]:
     """Write ``ratios.png`` and ``shape.png`` into ``directory``.
 
     Parameters
     ----------
     rows : sequence of dict
         Rows of the summary.
-    sweep : knotmm.sweep.core.Sweep
-        Gives the x key, the swept keys and ``log_x``.
     directory : path
+    x : str
+        The x axis (``Sweep.x_key``): a swept key, ``"point"`` or ``"replica"``.
+    keys : sequence of str
+        The swept keys (``Sweep.keys``), named in the title.
+    group_by : sequence of str, optional
+        Keys that separate series; default ``keys`` (pass ``[]`` in zip mode, where the
+        other keys change together with x).
+    log_x : bool, optional
+        As in :func:`plot_ratios`.
+    dpi : int
 
     Returns
     -------
@@ -287,15 +301,13 @@ def save_sweep_plots(rows, sweep, directory, dpi: int = 150) -> list[Path]:
     if not any(r.get("status") == "finished" for r in rows):
         return []
     directory = Path(directory)
-    x = sweep.x_key
-    title = ", ".join(sweep.keys) or "ensemble"
+    title = ", ".join(keys) or "ensemble"
+    groups = list(keys) if group_by is None else list(group_by)
     written = []
     for name, func, n in ((RATIO_PLOT, plot_ratios, 2), (SHAPE_PLOT, plot_shape, 3)):
         fig = Figure(figsize=(6.4, 2.6 * n + 0.8), layout="constrained")
         axes = fig.subplots(n, 1, sharex=True)
-        # in zip mode the other keys change together with x: one series
-        groups = [] if sweep.options.mode == "zip" else list(sweep.keys)
-        func(rows, x, axes=axes, group_by=groups, log_x=sweep.options.log_x)
+        func(rows, x, axes=axes, group_by=groups, log_x=log_x)
         fig.suptitle(f"sweep over {title}: {directory.name}", fontsize=10)
         path = directory / name
         fig.savefig(path, dpi=dpi)

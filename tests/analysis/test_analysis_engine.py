@@ -30,5 +30,5 @@ def test_engine_run_analysed(tmp_path, capsys):
     assert d["handedness"] == "right" and d["writhe"] > 2.5
     assert d["rotation_sense"] in ("clockwise", "counterclockwise")
     if d["knot_type_start"] is not None:
-        assert d["knot_type_start"] == d["knot_type_end"] == "3_1"
+        assert d["knot_type_start"] == d["knot_type_end"] == "+3_1"
         assert d["knot_type_changed_at"] is None

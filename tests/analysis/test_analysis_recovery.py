@@ -146,7 +146,7 @@ def test_json_contract(trefoil_result):
     assert REQUIRED_KEYS <= on_disk.keys()
     assert on_disk["window"] == [0.0, 300.0]
     assert on_disk["rotation_sense"] in ("clockwise", "counterclockwise")
-    assert on_disk["knot_type_start"] in (None, "3_1")
+    assert on_disk["knot_type_start"] in (None, "+3_1")
     assert on_disk["knot_type_changed_at"] is None
 
 

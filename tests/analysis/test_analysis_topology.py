@@ -8,7 +8,8 @@ import pytest
 from knotmm.analysis import handedness, knot_types, rotation_sense
 from knotmm.analysis.synthetic import vortex_knot_positions
 from knotmm.analysis.topology import mean_writhe
-from knotmm.knots import identify as knots
+from knotmm.knots.identify import topoly_available
+from knotmm.knots.writhe import writhe
 
 
 def torus_knot(p, q, n=600, r0=4.3, a=0.05):
@@ -35,7 +36,7 @@ def test_writhe_of_planar_and_moved_curves():
     rot = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))[0]
     rot *= np.sign(np.linalg.det(rot))  # a proper rotation
     moved = trefoil @ rot.T * 2.5 + [1.0, -4.0, 7.0]
-    assert knots.writhe(moved) == pytest.approx(knots.writhe(trefoil), rel=1e-9)
+    assert writhe(moved) == pytest.approx(writhe(trefoil), rel=1e-9)
 
 
 def test_handedness_and_rotation_sense_words():
@@ -77,7 +78,7 @@ def test_no_topoly_gives_null_and_note():
     assert "topoly" in kt.notes[0]
 
 
-@pytest.mark.skipif(not knots.topoly_available(), reason="topoly not installed")
+@pytest.mark.skipif(not topoly_available(), reason="topoly not installed")
 def test_trefoil_unties_with_topoly():
     """Frames 0-29: a trefoil; then a plain ring (the strands passed through each other)."""
     times = np.arange(60) * 0.5
@@ -85,11 +86,11 @@ def test_trefoil_unties_with_topoly():
     angle = 2 * np.pi * np.arange(60) / 60
     x[30:] = np.c_[3 * np.cos(angle), 3 * np.sin(angle), np.zeros(60)]
     kt = knot_types(times, x, 0, 59, samples=6)
-    assert kt.initial == "3_1" and kt.end == "0_1"
+    assert kt.initial == "+3_1" and kt.end == "0_1"  # signed: the right-handed trefoil
     assert kt.changed_frame == 30 and kt.changed_at == 15.0
 
 
-@pytest.mark.skipif(not knots.topoly_available(), reason="topoly not installed")
+@pytest.mark.skipif(not topoly_available(), reason="topoly not installed")
 def test_window_ends_before_a_change_of_knot_type():
     """A steady trefoil whose strands pass through each other at t = 150: the periodic
     state ends there, so the window must stop before it (unless --to says otherwise)."""

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from knotmm.analysis.tilt import find_flips, planar_winding, ring_normal, tilt_analysis, torus_tilt
-from knotmm.shapes.templates import torus_knot
+from knotmm.shapes import torus_knot
 
 
 def rotation_x(angle_deg):

@@ -22,7 +22,7 @@ def run(tmp_path_factory):
 def test_analyze_writes_json_and_plots(run, capsys):
     assert main(["analyze", str(run), "--knot-samples", "3"]) == 0
     out = capsys.readouterr().out
-    for word in ("V [d/tau_d]", "tau_swirl/tau_sed", "counterclockwise", "right-handed"):
+    for word in ("V [d/tau_d]", "tau_swirl/tau_sed", "counterclockwise", "handedness right"):
         assert word in out
     result = json.loads((run / "analysis.json").read_text())
     assert result["tau_swirl"] == pytest.approx(20.0, rel=0.01)

@@ -18,7 +18,7 @@ from mdtraj.formats import DCDTrajectoryFile
 from knotmm.cli.main import main
 from knotmm.config import RunConfig, load_run_file, read_toml
 from knotmm.errors import SimulationFault
-from knotmm.shapes.templates import build_template
+from knotmm.shapes import build_template
 from knotmm.workflow import run
 
 SHORT = {"knot": {"beads": 40}, "run": {"duration": 5.0}, "output": {"frame_interval": 0.5}}
@@ -246,3 +246,10 @@ def test_knotmm_console_script_is_installed():
     assert exe.exists() or any(
         (Path(p) / "knotmm").exists() for p in os.environ.get("PATH", "").split(os.pathsep)
     )
+
+
+def test_resume_takes_no_run_options_but_duration(short_run, capsys):
+    _, directory, _ = short_run
+    code, _, err = _cli(["run", "--resume", str(directory), "--beads", "40"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert "--beads" in err and "but --duration" in err

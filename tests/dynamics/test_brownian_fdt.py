@@ -17,8 +17,9 @@ import pytest
 from scipy import stats
 
 from knotmm.config import RunConfig
-from knotmm.dynamics.brownian import EulerMaruyama, ItoHeun, make_brownian_integrator
+from knotmm.dynamics.brownian import EulerMaruyama, ItoHeun
 from knotmm.dynamics.mobility import pair_coefficients, rpy_matrix, rpy_velocities
+from knotmm.dynamics.registry import make
 from knotmm.engine.simulation import Simulation
 from knotmm.model.system import ChainModel
 
@@ -35,7 +36,7 @@ def zero_rhs(y):
 
 # -- a free bead ------------------------------------------------------------------------------
 def free_bead_msd(name, steps, h, peclet, lags, seed):
-    integ = make_brownian_integrator(name, h, peclet, seed=seed, noise="cholesky")
+    integ = make(name, h, peclet=peclet, seed=seed, noise="cholesky")
     y = np.zeros((1, 3))
     path = np.empty((steps + 1, 3))
     path[0] = y[0]
@@ -75,7 +76,7 @@ def pair_expectations(r):
 
 
 def two_bead_displacements(name, r, repeats, steps, h, peclet, seed):
-    integ = make_brownian_integrator(name, h, peclet, seed=seed, noise="cholesky")
+    integ = make(name, h, peclet=peclet, seed=seed, noise="cholesky")
     start = np.array([[0.0, 0.0, 0.0], [r, 0.0, 0.0]])
     disp = np.empty((repeats, 2, 3))
     for k in range(repeats):
@@ -278,7 +279,7 @@ def test_dimer_bond_length_is_boltzmann_with_hi_slow(cls):
 
 def dimer_time_series(name, noise, samples, spacing, h, seed):
     """One dimer through knotmm's own noise generator: bond length every ``spacing`` steps."""
-    integ = make_brownian_integrator(name, h, 1.0 / KT, seed=seed, noise=noise)
+    integ = make(name, h, peclet=1.0 / KT, seed=seed, noise=noise)
 
     def rhs(y):
         d = y[1] - y[0]
@@ -341,7 +342,7 @@ def ring_com_msd(repeats, steps, h, peclet, seed, n_beads=12):
             },
         }
     )
-    from knotmm.dynamics.brownian import integrator_from_config
+    from knotmm.dynamics.registry import integrator_from_config
 
     model = ChainModel.from_config(cfg)
     assert model.gravity == 0.0

@@ -18,17 +18,16 @@ from scipy.integrate import solve_ivp
 
 from knotmm.config import RunConfig
 from knotmm.dynamics.deterministic import (
-    INTEGRATORS,
     RK23,
     RKC2,
     Euler,
     Heun,
     Midpoint,
     StepSizeUnderflow,
-    make_integrator,
 )
+from knotmm.dynamics.registry import REGISTRY, make
 from knotmm.engine.simulation import Simulation
-from knotmm.shapes.templates import build_template
+from knotmm.shapes import build_template
 
 ORDERS = {"euler": 1, "heun": 2, "midpoint": 2, "rk23": 3, "rkc2": 2}
 SHAPE = (5, 3)
@@ -37,8 +36,8 @@ SHAPE = (5, 3)
 def _fixed(name, h):
     """An integrator of the given name taking steps of exactly h."""
     if name in ("rk23", "rkc2"):
-        return INTEGRATORS[name](h, tolerance=1e12, max_timestep=h)
-    return INTEGRATORS[name](h)
+        return REGISTRY[name].load()(h, tolerance=1e12, max_timestep=h)
+    return REGISTRY[name].load()(h)
 
 
 def _integrate(integrator, rhs, y0, t_end):
@@ -104,7 +103,7 @@ def test_measured_order_on_smooth_systems(problems, problem, name):
         errs.append(_err(y, exact))
     slopes = _slopes(hs, errs)
     assert slopes[-1] == pytest.approx(ORDERS[name], abs=0.12), (errs, slopes)
-    assert INTEGRATORS[name].order == ORDERS[name]
+    assert REGISTRY[name].load().order == ORDERS[name] == REGISTRY[name].order
 
 
 def test_heun_and_midpoint_are_different_methods(problems):
@@ -132,7 +131,7 @@ def test_adaptive_global_error_follows_tolerance(problems, name):
     tols = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7]
     errs, counts = [], []
     for tol in tols:
-        integ = make_integrator(name, 0.01, tolerance=tol)
+        integ = make(name, 0.01, tolerance=tol)
         y, _, steps = _integrate(integ, rhs, y0, t_end)
         errs.append(_err(y, exact))
         counts.append(len(steps))
@@ -165,7 +164,7 @@ def test_rkc2_is_stable_on_a_stiff_system_with_few_evaluations(problems):
             calls[0] += 1
             return -(k @ y.reshape(-1)).reshape(SHAPE)
 
-        integ = make_integrator(name, 0.01, tolerance=1e-5)
+        integ = make(name, 0.01, tolerance=1e-5)
         y, _, _ = _integrate(integ, rhs, y0, t_end)
         counts[name] = calls[0]
         assert _err(y, exact) < 1e-3, name
@@ -193,7 +192,7 @@ def test_rkc2_spectral_radius_estimate(problems):
 def test_steps_never_pass_max_dt(problems):
     rhs, y0, _, _ = problems["nonlinear"]
     for name in ORDERS:
-        integ = make_integrator(name, 0.05)
+        integ = make(name, 0.05)
         _, dt = integ.step(rhs, y0, max_dt=0.0123)
         assert 0 < dt <= 0.0123, name
 
@@ -210,8 +209,8 @@ def test_underflow_is_reported():
 
 
 def test_make_integrator_rejects_unknown_names():
-    with pytest.raises(ValueError, match="integrator='rk4'"):
-        make_integrator("rk4", 0.01)
+    with pytest.raises(ValueError, match="run.integrator = 'rk4'"):
+        make("rk4", 0.01)
     with pytest.raises(ValueError, match="timestep"):
         Euler(0.0)
 
@@ -238,7 +237,7 @@ def test_default_run_is_within_1e3_d_of_converged_solution():
     platform) from the default T(2,3), N = 90 start stays within 1e-3 d of a converged
     solution (rk23, tolerance 1e-8 d, Reference platform) over 4 tau_d."""
     from knotmm.config import resolve_stepping
-    from knotmm.dynamics.brownian import integrator_from_config
+    from knotmm.dynamics.registry import integrator_from_config
 
     cfg = RunConfig.from_dict({})
     assert resolve_stepping(cfg) == ("rk23", 0.01)
@@ -271,7 +270,7 @@ def test_chain_error_decreases_with_tolerance(trefoil90, name):
     ref, _, _ = _integrate(RK23(0.01, tolerance=1e-10), sim.velocity, trefoil90, 4.0)
     errs = []
     for tol in (1e-3, 1e-4, 1e-5, 1e-6):
-        y, _, _ = _integrate(make_integrator(name, 0.01, tol), sim.velocity, trefoil90, 4.0)
+        y, _, _ = _integrate(make(name, 0.01, tolerance=tol), sim.velocity, trefoil90, 4.0)
         errs.append(_err(y, ref))
     assert all(np.diff(errs) < 0), errs
     assert errs[1] < 1e-3

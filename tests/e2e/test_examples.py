@@ -5,9 +5,9 @@ from pathlib import Path
 import pytest
 
 from knotmm.config import load_run_file, read_toml
-from knotmm.dynamics.brownian import integrator_from_config
-from knotmm.shapes.templates import build_template
-from knotmm.sweep.core import load_sweep_file
+from knotmm.dynamics.registry import integrator_from_config
+from knotmm.shapes import build_template
+from knotmm.sweep import load_sweep_file
 
 EXAMPLES = sorted((Path(__file__).resolve().parents[2] / "examples").glob("*/*.toml"))
 

@@ -9,6 +9,7 @@ import pytest
 
 from knotmm.engine.interrupt import (
     StopRequested,
+    describe_signal,
     raise_if_requested,
     stop_between_steps,
     stop_requested,
@@ -93,3 +94,27 @@ def test_a_stopped_simulation_goes_on_exactly_as_an_uninterrupted_one(trefoil40)
     np.testing.assert_array_equal(np.array(frames.frames), np.array(ref_frames.frames))
     np.testing.assert_array_equal(sim.positions, reference.positions)
     assert sim.currentStep == reference.currentStep
+
+
+def test_the_stop_names_its_signal(capsys):
+    with stop_between_steps():
+        _signal_self(signal.SIGTERM)
+        with pytest.raises(StopRequested) as info:
+            raise_if_requested()
+    assert info.value.signal == "SIGTERM"
+    assert "SIGTERM received: stopping after the current step" in capsys.readouterr().err
+    assert describe_signal("SIGINT") == "SIGINT (Ctrl-C)"
+
+
+def test_a_second_signal_stops_at_once_while_the_run_is_ending(capsys):
+    """Issue 11, item 11: after the first stop was taken (StopRequested raised, the run now
+    closing its files and workers), a second Ctrl-C raises at once instead of asking again."""
+    with stop_between_steps():
+        _signal_self(signal.SIGINT)
+        with pytest.raises(StopRequested):
+            raise_if_requested()
+        assert not stop_requested()  # the request is used up ...
+        with pytest.raises(KeyboardInterrupt) as info:
+            _signal_self(signal.SIGINT, until=lambda: False)  # ... the signal still counts
+        assert not isinstance(info.value, StopRequested)
+    assert capsys.readouterr().err.count("stopping after the current step") == 1

@@ -10,11 +10,12 @@ import numpy as np
 import openmm
 import pytest
 
-from knotmm.dynamics.deterministic import make_integrator
+from knotmm.dynamics.registry import make
 from knotmm.engine.simulation import Simulation
-from knotmm.knots.identify import identify_knot, topoly_available, writhe
-from knotmm.model.system import ChainModel, build_system, site_positions
-from knotmm.shapes.templates import torus_knot
+from knotmm.knots.identify import identify_knot, topoly_available
+from knotmm.knots.writhe import writhe
+from knotmm.model.system import ChainModel, chain_system, site_positions
+from knotmm.shapes import torus_knot
 
 pytestmark = pytest.mark.skipif(not topoly_available(), reason="needs topoly")
 
@@ -24,7 +25,7 @@ def _pull_to_mirror(segment_repulsion: bool, duration: float = 5.0):
     start = start - start.mean(axis=0)
     target = start * np.array([1.0, 1.0, -1.0])
     model = ChainModel(gravity=0.0, segment_repulsion=segment_repulsion)
-    sim = Simulation(start, model, make_integrator("rk23", 0.01, 1e-4), platform="CPU")
+    sim = Simulation(start, model, make("rk23", 0.01, tolerance=1e-4), platform="CPU")
     spring = openmm.CustomExternalForce("0.5*k_pull*((x-x0)^2+(y-y0)^2+(z-z0)^2)")
     spring.addGlobalParameter("k_pull", 5.0)
     for name in ("x0", "y0", "z0"):
@@ -55,7 +56,7 @@ def test_segment_repulsion_keeps_the_knot():
 def test_midpoint_sites_follow_their_bonds_and_carry_no_force():
     x = torus_knot(2, 3, 40)
     model = ChainModel(segment_repulsion=True)
-    system = build_system(x, model)
+    system = chain_system(x, model)
     assert system.getNumParticles() == 80
     for k in range(40):
         assert system.isVirtualSite(40 + k)
@@ -213,11 +214,11 @@ def test_identifier_worker_exits_when_its_parent_is_killed(tmp_path):
     script.write_text(
         "import sys, time\n"
         "from knotmm.knots.worker import IsolatedKnotIdentifier\n"
-        "from knotmm.shapes.templates import torus_knot\n"
+        "from knotmm.shapes import torus_knot\n"
         "if __name__ == '__main__':\n"
         "    ident = IsolatedKnotIdentifier()\n"
         "    print(ident(torus_knot(2, 3, 40)), flush=True)\n"
-        "    print(list(ident._pool._processes)[0], flush=True)\n"
+        "    print(ident._worker._proc.pid, flush=True)\n"
         "    time.sleep(60)\n"
     )
     # stderr: the killed parent's semaphore tracker complains about what it leaves behind

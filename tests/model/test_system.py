@@ -17,7 +17,7 @@ from openmm import unit
 from knotmm.config import RunConfig
 from knotmm.engine.simulation import Simulation
 from knotmm.errors import ConfigError
-from knotmm.model.system import FORCE_GROUPS, ChainModel, build_system, build_topology, ring_bonds
+from knotmm.model.system import FORCE_GROUPS, ChainModel, chain_system
 
 TERMS = ("bond", "bend", "steric", "gravity")
 RC = 2.0 ** (1.0 / 6.0)
@@ -34,7 +34,7 @@ OVERRIDES = dict(
 
 
 def _context(x, model=None, platform="Reference"):
-    system = build_system(x, model)
+    system = chain_system(x, model)
     integrator = openmm.VerletIntegrator(0.001)
     context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName(platform))
     context.setPositions(np.asarray(x, dtype=np.float64))
@@ -278,7 +278,7 @@ def test_gravity_override_scales_the_force(trefoil40):
 
 
 def test_forces_are_named_and_grouped():
-    system = build_system(np.zeros((6, 3)) + np.arange(6)[:, None])
+    system = chain_system(np.zeros((6, 3)) + np.arange(6)[:, None])
     named = {f.getName(): f for f in system.getForces()}
     assert set(named) == set(TERMS)
     assert len(system.getForces()) == 4
@@ -294,20 +294,6 @@ def test_forces_are_named_and_grouped():
     assert system.getNumParticles() == 6
 
 
-@pytest.mark.parametrize("n", [4, 5, 90])
-def test_topology_is_a_ring_of_bea_residues(n):
-    top = build_topology(n)
-    residues = list(top.residues())
-    assert len(residues) == n and all(r.name == "BEA" for r in residues)
-    assert top.getNumAtoms() == n and top.getNumChains() == 1
-    bonds = {tuple(sorted((b[0].index, b[1].index))) for b in top.bonds()}
-    assert len(bonds) == n
-    assert bonds == {tuple(sorted((i, (i + 1) % n))) for i in range(n)}
-    assert (0, n - 1) in bonds  # the closure
-    assert top.getPeriodicBoxVectors() is None
-    assert {tuple(sorted(map(int, b))) for b in ring_bonds(n)} == bonds
-
-
 @pytest.mark.parametrize(
     "bad,match",
     [
@@ -316,6 +302,6 @@ def test_topology_is_a_ring_of_bea_residues(n):
         (np.full((5, 3), np.nan), "NaN"),
     ],
 )
-def test_build_system_rejects_bad_positions(bad, match):
+def test_chain_system_rejects_bad_positions(bad, match):
     with pytest.raises(ConfigError, match=match):
-        build_system(bad)
+        chain_system(bad)

@@ -1,4 +1,4 @@
-"""Tests of knot templates (knotmm.shapes.templates), the bead PDB writer and `knotmm template`."""
+"""Tests of knot templates (knotmm.shapes) and the bead PDB writer."""
 
 from __future__ import annotations
 
@@ -8,18 +8,20 @@ import mdtraj
 import numpy as np
 import pytest
 
-from knotmm.cli.main import main
 from knotmm.config import RunConfig
-from knotmm.errors import ConfigError, TemplateError, TrajectoryFileError
-from knotmm.io.pdb import bead_topology, write_pdb
-from knotmm.knots.identify import identify_knot, topoly_available, writhe
-from knotmm.shapes import templates
-from knotmm.shapes.templates import (
+from knotmm.errors import TemplateError, TrajectoryFileError
+from knotmm.io.pdb import mdtraj_topology, write_pdb
+from knotmm.knots.chirality import is_signed, unsigned_knot_type
+from knotmm.knots.identify import identify_knot, topoly_available
+from knotmm.knots.writhe import writhe
+from knotmm.shapes import (
     BUILTIN_BRAIDS,
     braid_knot,
     build_template,
     check_template,
+    checks,
     from_file,
+    knotinfo,
     list_named_knots,
     minimal_beads,
     named_knot,
@@ -29,7 +31,7 @@ from knotmm.units import LJ_CUTOFF_FACTOR
 
 needs_topoly = pytest.mark.skipif(not topoly_available(), reason="topoly not installed")
 needs_knotinfo = pytest.mark.skipif(
-    not templates.knotinfo_available(), reason="database_knotinfo not installed"
+    not knotinfo.knotinfo_available(), reason="database_knotinfo not installed"
 )
 
 BOND = 0.6
@@ -77,8 +79,8 @@ def test_template_at_120_beads(knot, knot_type):
     tpl = build_template(cfg(beads=120, **knot))
     assert tpl.positions.shape == (120, 3)
     assert_valid(tpl.positions, knot_type)
-    if topoly_available():
-        assert tpl.knot_type == knot_type
+    if topoly_available():  # unmirrored, every chiral one is right-handed: "+"
+        assert tpl.knot_type == (knot_type if knot_type == "4_1" else f"+{knot_type}")
     assert tpl.writhe == pytest.approx(writhe(tpl.positions))
     assert tpl.resolved["knot.beads"] == 120
     assert tpl.resolved["knot.major_radius"] > 0
@@ -103,8 +105,8 @@ def test_mirror_reverses_writhe(knot, knot_type):
     if knot_type != "4_1":
         assert abs(right.writhe) > 1.0
         assert "mirror image" in left.description
-        assert ("right-handed" in right.description) == (right.writhe > 0)
-        assert ("left-handed" in left.description) == (left.writhe < 0)
+        assert right.description.endswith(f", +{knot_type}") == (right.writhe > 0)
+        assert left.description.endswith(f", -{knot_type} (mirror image)") == (left.writhe < 0)
 
 
 def test_trefoil_is_right_handed_and_radius_near_estimate():
@@ -112,7 +114,7 @@ def test_trefoil_is_right_handed_and_radius_near_estimate():
     for n, rel in ((40, 0.15), (120, 0.02)):
         tpl = build_template(cfg(beads=n, p=2, q=3))
         assert tpl.writhe > 0
-        assert tpl.description == "T(2,3), right-handed"
+        assert tpl.description == "T(2,3), +3_1"
         estimate = n * BOND / (2 * math.pi * 2)
         assert tpl.resolved["knot.major_radius"] == pytest.approx(estimate, rel=rel)
         assert tpl.resolved["knot.major_radius"] < estimate
@@ -156,12 +158,48 @@ def test_explicit_major_radius_is_kept_and_bonds_are_equal():
     assert np.ptp(b) < 1e-9
     assert b[0] != pytest.approx(BOND, rel=0.005)
     r0 = build_template(cfg(beads=100, p=2, q=3)).resolved["knot.major_radius"]
-    with pytest.raises(TemplateError, match=r"knot\.major_radius=5 .* off model\.bond_length"):
-        build_template(cfg(beads=100, major_radius=5.0))
+    # issue 11, item 10: accepted, the bonds relax in the run
+    tpl = build_template(cfg(beads=100, major_radius=5.0))
+    np.testing.assert_allclose(tpl.positions, x, atol=1e-12)
+    assert any("6.3% longer than model.bond_length=0.6; they relax" in n for n in tpl.notes)
     tpl = build_template(cfg(beads=100, major_radius=r0))
+    assert not any("relax" in n for n in tpl.notes)
     np.testing.assert_allclose(bonds(tpl.positions), BOND, rtol=1e-6)
     # the recorded radius rebuilds the same template bit for bit (a run's run.toml)
     np.testing.assert_array_equal(tpl.positions, build_template(cfg(beads=100)).positions)
+
+
+def test_study_start_with_explicit_radii_is_accepted_and_recorded():
+    # issue 11, item 10: T(2,3) on a torus of radii 3.44 and 1.2 at N = 90, bonds 9 % short
+    tpl = build_template(cfg(beads=90, p=2, q=3, major_radius=3.44, minor_radius=1.2))
+    b = bonds(tpl.positions)
+    # independent: the chain is 90 equal chords of the curve, each shorter than 0.6 d
+    assert np.ptp(b) < 1e-9 and b[0] == pytest.approx(0.5444, abs=1e-4)
+    assert tpl.facts["template_bond_range"] == pytest.approx([b.min(), b.max()])
+    assert any("9.3% shorter" in n for n in tpl.notes)
+    if topoly_available():
+        assert tpl.knot_type == "+3_1"
+
+
+def test_bonds_of_an_explicit_radius_start_relax_in_the_run():
+    from knotmm.engine.simulation import Simulation
+    from knotmm.model.system import ChainModel
+
+    tpl = build_template(cfg(beads=90, p=2, q=3, major_radius=3.44, minor_radius=1.2))
+    sim = Simulation(tpl.positions, ChainModel(), platform="Reference")
+    sim.run(2.0, write_at_start=False)
+    before = np.abs(bonds(tpl.positions) - BOND).max()
+    after = np.abs(bonds(sim.positions) - BOND).max()
+    assert after < 0.2 * before
+
+
+def test_explicit_radius_refuses_only_deep_overlaps():
+    # beads closer than lj_sigma: the steric force may not part them
+    with pytest.raises(TemplateError, match=r"knot\.major_radius=1\.3 .*too tight.*closer than"):
+        build_template(cfg(beads=90, p=2, q=3, major_radius=1.3, minor_radius=1.2))
+    # bonds so long that the run would stop at once
+    with pytest.raises(TemplateError, match=r"knot\.major_radius=12: bond .*run\.max_bond_length"):
+        build_template(cfg(beads=40, p=2, q=3, major_radius=12.0, minor_radius=1.2))
 
 
 def test_other_bond_length_and_sigma():
@@ -190,8 +228,8 @@ def test_braid_words_give_their_knots():
 
 
 def test_builtin_names_without_knotinfo(monkeypatch):
-    monkeypatch.setattr(templates, "_knotinfo_table", lambda: {})
-    monkeypatch.setattr(templates, "knotinfo_available", lambda: False)
+    monkeypatch.setattr(knotinfo, "knotinfo_table", lambda: {})
+    monkeypatch.setattr(knotinfo, "knotinfo_available", lambda: False)
     assert list_named_knots() == list(BUILTIN_BRAIDS)
     for name in BUILTIN_BRAIDS:
         assert named_knot(name, 120).shape == (120, 3)
@@ -201,7 +239,7 @@ def test_builtin_names_without_knotinfo(monkeypatch):
 
 @needs_knotinfo
 def test_builtin_words_are_knotinfo_words_and_more_knots_available():
-    table = templates._knotinfo_table()
+    table = knotinfo.knotinfo_table()
     for name, word in BUILTIN_BRAIDS.items():
         assert table[name]["word"] == word
     names = list_named_knots()
@@ -212,12 +250,13 @@ def test_builtin_words_are_knotinfo_words_and_more_knots_available():
 @needs_topoly
 @pytest.mark.parametrize(
     ("name", "beads", "hand"),
-    [("8_17", 150, "amphichiral"), ("6_2", 120, "handed"), ("6_3", 120, "amphichiral")],
+    [("8_17", 150, "amphichiral"), ("6_2", 120, "chiral"), ("6_3", 120, "amphichiral")],
 )
 def test_knotinfo_knots(name, beads, hand):
     tpl = build_template(cfg(kind="knotinfo", name=name, beads=beads))
-    assert tpl.knot_type == name
-    assert "KnotInfo" in tpl.description and hand in tpl.description
+    assert unsigned_knot_type(tpl.knot_type) == name
+    assert is_signed(tpl.knot_type) == (hand == "chiral")  # only chiral knots carry a sign
+    assert "KnotInfo" in tpl.description and tpl.description.endswith(f", {tpl.knot_type}")
 
 
 @needs_knotinfo
@@ -226,10 +265,11 @@ def test_knots_the_polynomial_cannot_separate():
     # 10_132 shares its HOMFLY-PT polynomial with 5_1; 9_42 is chiral although HOMFLY-PT
     # does not see it: the tables decide
     tpl = build_template(cfg(kind="knotinfo", name="10_132", beads=130))
-    assert tpl.knot_type == "10_132"
-    assert any("does not tell 10_132 from 5_1" in n for n in tpl.notes)
+    assert unsigned_knot_type(tpl.knot_type) == "10_132"
+    assert any("10_132 from 5_1" in n for n in tpl.notes)
     tpl = build_template(cfg(kind="knotinfo", name="9_42", beads=120))
-    assert tpl.knot_type == "9_42" and "handed" in tpl.description
+    assert unsigned_knot_type(tpl.knot_type) == "9_42" and is_signed(tpl.knot_type)
+    assert tpl.knot_type[0] == ("+" if tpl.writhe > 0 else "-") and tpl.knot_type in tpl.description
     assert not build_template(cfg(kind="knotinfo", name="5_1", beads=100)).notes
 
 
@@ -240,12 +280,12 @@ def test_knots_the_polynomial_cannot_separate():
 def test_knotinfo_knots_beyond_ten_crossings(name):
     beads = minimal_beads(cfg(kind="knotinfo", name=name))
     tpl = build_template(cfg(kind="knotinfo", name=name, beads=beads))
-    assert name in tpl.knot_type.split("|")
+    assert name in unsigned_knot_type(tpl.knot_type).split("|")
 
 
 def test_named_knot_accepts_spellings():
-    assert templates._normalise_name(" 5.2 ") == "5_2"
-    assert templates._normalise_name("11A367") == "11a_367"
+    assert knotinfo.normalise_name(" 5.2 ") == "5_2"
+    assert knotinfo.normalise_name("11A367") == "11a_367"
     np.testing.assert_allclose(named_knot("5.2", 100), named_knot("5_2", 100))
 
 
@@ -314,12 +354,12 @@ def test_check_template_reports_overlap_and_bonds():
 @needs_topoly
 def test_check_template_catches_wrong_knot_type():
     report = check_template(torus_knot(2, 5, 100), BOND, 0.5, expected_knot="3_1")
-    assert report.knot_type == "5_1"
+    assert report.knot_type == "+5_1"
     assert any("not 3_1" in p for p in report.problems)
 
 
 def test_knot_type_not_checked_without_topoly(monkeypatch):
-    monkeypatch.setattr(templates, "topoly_available", lambda: False)
+    monkeypatch.setattr(checks, "topoly_available", lambda: False)
     tpl = build_template(cfg(beads=80))
     assert tpl.knot_type is None
     assert any("not checked: topoly not installed" in n for n in tpl.notes)
@@ -374,7 +414,7 @@ def test_file_template_round_trip(tmp_path):
     write_pdb(tmp_path / "topology.pdb", x)
     np.testing.assert_allclose(from_file(tmp_path / "topology.pdb"), x, atol=1e-3)
     frames = np.stack([x + [0.0, 0.0, 0.5 * k] for k in range(4)])
-    mdtraj.Trajectory(frames, bead_topology(80)).save_dcd(str(tmp_path / "traj.dcd"))
+    mdtraj.Trajectory(frames, mdtraj_topology(80)).save_dcd(str(tmp_path / "traj.dcd"))
     np.testing.assert_allclose(from_file(tmp_path / "traj.dcd", frame=-1), frames[-1], atol=1e-4)
     (tmp_path / "traj.dcd").rename(tmp_path / "trajectory.dcd")  # a run directory
     np.testing.assert_allclose(from_file(tmp_path, frame=1), frames[1], atol=1e-4)
@@ -384,7 +424,7 @@ def test_file_template_round_trip(tmp_path):
     assert tpl.resolved["knot.beads"] == 80
     assert any("knot.beads=90 ignored" in n for n in tpl.notes)
     if topoly_available():
-        assert tpl.knot_type == "5_1"
+        assert tpl.knot_type == "+5_1"
     mirrored = build_template(cfg(kind="file", path=str(tmp_path / "topology.pdb"), mirror=True))
     assert mirrored.writhe == pytest.approx(-tpl.writhe, abs=1e-3)
 
@@ -393,7 +433,7 @@ def test_file_errors(tmp_path):
     x = torus_knot(2, 3, 60)
     write_pdb(tmp_path / "ring.pdb", x)
     write_pdb(tmp_path / "small.pdb", torus_knot(2, 3, 50))
-    mdtraj.Trajectory(np.stack([x] * 3), bead_topology(60)).save_dcd(str(tmp_path / "ring.dcd"))
+    mdtraj.Trajectory(np.stack([x] * 3), mdtraj_topology(60)).save_dcd(str(tmp_path / "ring.dcd"))
     data = (tmp_path / "ring.dcd").read_bytes()
     (tmp_path / "cut.dcd").write_bytes(data[:-100])
     (tmp_path / "stub.dcd").write_bytes(data[:40])
@@ -459,68 +499,47 @@ def test_file_with_overlapping_beads_is_refused(tmp_path):
         build_template(cfg(kind="file", path=str(tmp_path / "bad.pdb")))
 
 
-# -- command line ----------------------------------------------------------------------------------
-def test_cli_writes_checked_template(tmp_path, capsys):
-    out = tmp_path / "5_2.pdb"
-    assert main(["template", "5_2", "--beads", "120", "--out", str(out)]) == 0
-    text = capsys.readouterr().out
-    for word in ("beads      120", "bonds", "closest", "writhe", "knot type", "wrote"):
-        assert word in text
-    if topoly_available():
-        assert "5_2 (topoly" in text
-    assert mdtraj.load(str(out)).n_atoms == 120
+# -- rings and open chains (issue 11, item 7) ---------------------------------------------
+def _strip_conect(path):
+    lines = [ln for ln in path.read_text().splitlines(True) if not ln.startswith("CONECT")]
+    path.write_text("".join(lines))
 
 
-@pytest.mark.parametrize(
-    ("argv", "writhe_sign"),
-    [
-        (["torus:2,3", "--mirror"], -1),
-        (["T(3,2)"], 1),
-        (["braid:1,1,1"], 1),
-        (["braid:-1,-1,-1"], -1),
-    ],
-)
-def test_cli_knot_forms(argv, writhe_sign, capsys):
-    assert main(["template", *argv, "--beads", "80"]) == 0
-    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("writhe"))
-    assert np.sign(float(line.split()[1])) == writhe_sign
+def test_open_chain_file_is_refused_for_a_run(tmp_path):
+    from knotmm.workflow import run
+
+    path = tmp_path / "open.pdb"
+    write_pdb(path, torus_knot(2, 3, 60), closed=False)
+    with pytest.raises(TemplateError, match=r"open chain.*CONECT    1   60") as info:
+        build_template(cfg(kind="file", path=str(path)))
+    assert "\n" not in str(info.value)
+    run_cfg = RunConfig.from_dict(
+        {"knot": {"kind": "file", "path": str(path)}, "run": {"duration": 1.0}}
+    )
+    with pytest.raises(TemplateError, match="open chain"):
+        run(run_cfg, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.parametrize(
-    ("argv", "message"),
-    [
-        (["torus:2,4"], "link of 2 components"),
-        (["torus:2"], "torus:P,Q"),
-        (["braid:1,x"], "braid:W"),
-        (["widget:3"], "unknown prefix"),
-        (["torus:2,5", "--beads", "12"], "knot.beads >= "),
-        (["3_1", "--beads", "2"], "knot.beads"),
-        (["3_1", "--out", "x.txt"], ".pdb"),
-        ([], "KNOT is missing"),
-    ],
-)
-def test_cli_errors_are_one_line(argv, message, capsys):
-    assert main(["template", *argv]) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("knotmm: error: ") and message in err
-    assert err.count("\n") == 1
+def test_open_chain_is_closed_with_a_note_when_allowed(tmp_path):
+    path = tmp_path / "open.pdb"
+    x = torus_knot(2, 3, 60)
+    write_pdb(path, x, closed=False)
+    tpl = build_template(cfg(kind="file", path=str(path)), allow_open_chain=True)
+    assert any("open chain" in n for n in tpl.notes)
+    np.testing.assert_allclose(tpl.positions, x - x.mean(axis=0), atol=1e-3)
 
 
-def test_cli_list(capsys):
-    assert main(["template", "--list"]) == 0
-    text = capsys.readouterr().out
-    for name in BUILTIN_BRAIDS:
-        assert name in text
+def test_file_without_bonds_is_taken_as_a_ring_with_a_note(tmp_path):
+    path = tmp_path / "bare.pdb"
+    write_pdb(path, torus_knot(2, 3, 60))
+    _strip_conect(path)
+    tpl = build_template(cfg(kind="file", path=str(path)))
+    assert any("lists no bonds" in n and "ring" in n for n in tpl.notes)
 
 
-def test_parse_knot():
-    from knotmm.cli.template import parse_knot
-
-    assert parse_knot("torus:3,2") == {"kind": "torus", "p": 3, "q": 2}
-    assert parse_knot("T(2,5)") == {"kind": "torus", "p": 2, "q": 5}
-    assert parse_knot("braid:1,-2,1,-2") == {"kind": "braid", "word": [1, -2, 1, -2]}
-    assert parse_knot("6_1") == {"kind": "knotinfo", "name": "6_1"}
-    assert parse_knot("run/top.pdb") == {"kind": "file", "path": "run/top.pdb"}
-    assert parse_knot("file:a.dcd") == {"kind": "file", "path": "a.dcd"}
-    with pytest.raises(ConfigError):
-        parse_knot("torus:a,b")
+def test_closed_file_gives_no_ring_note(tmp_path):
+    path = tmp_path / "ring.pdb"
+    write_pdb(path, torus_knot(2, 3, 60))
+    tpl = build_template(cfg(kind="file", path=str(path)))
+    assert not any("bond" in n and "ring" in n for n in tpl.notes)

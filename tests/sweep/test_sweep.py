@@ -8,10 +8,9 @@ import pytest
 from knotmm.cli.main import main
 from knotmm.config import RunConfig
 from knotmm.errors import ConfigError
-from knotmm.sweep.core import (
+from knotmm.sweep import (
     ANALYSIS_COLUMNS,
     Sweep,
-    _summary_text,
     expand,
     load_sweep_file,
     point_name,
@@ -19,6 +18,7 @@ from knotmm.sweep.core import (
     replica_seeds,
     summary_values,
 )
+from knotmm.sweep.summary import summary_text
 
 
 def sweep_dict(**sweep):
@@ -226,7 +226,7 @@ def test_summary_roundtrip(tmp_path):
     sweep = Sweep.from_dict(sweep_dict(**{"knot.beads": [40, 50]}))
     rows = fake_rows(sweep)
     rows[1].update(status="error", error="TemplateError: too few, really", **summary_values(None))
-    (tmp_path / "summary.csv").write_text(_summary_text(sweep, rows))
+    (tmp_path / "summary.csv").write_text(summary_text(sweep.columns, rows))
     back = read_summary(tmp_path)
     header = (tmp_path / "summary.csv").read_text().splitlines()[0].split(",")
     assert header[:5] == ["point", "directory", "knot.beads", "status", "error"]
@@ -255,7 +255,13 @@ def test_sweep_plots_are_written(tmp_path, sweep):
     from knotmm.sweep.plots import save_sweep_plots
 
     s = Sweep.from_dict(sweep_dict(**sweep))
-    paths = save_sweep_plots(fake_rows(s), s, tmp_path)
+    paths = save_sweep_plots(
+        fake_rows(s),
+        tmp_path,
+        s.x_key,
+        s.keys,
+        group_by=[] if s.options.mode == "zip" else list(s.keys),
+    )
     assert [p.name for p in paths] == ["ratios.png", "shape.png"]
     assert all(p.stat().st_size > 1000 for p in paths)
 
@@ -266,7 +272,7 @@ def test_no_plot_without_finished_points(tmp_path):
     s = Sweep.from_dict(sweep_dict(**{"knot.beads": [40]}))
     rows = fake_rows(s)
     rows[0]["status"] = "fault"
-    assert save_sweep_plots(rows, s, tmp_path) == []
+    assert save_sweep_plots(rows, tmp_path, s.x_key, s.keys) == []
 
 
 def test_base_config_is_a_valid_run_config():
@@ -304,3 +310,43 @@ def test_run_toml_as_base_lets_the_radius_follow_the_beads():
     assert "major_radius" in sweep.notes[0]
     plain = Sweep.from_dict({k: v for k, v in data.items() if k != "knotmm"})
     assert [p.config["knot.major_radius"] for p in plain.points] == [4.2, 4.2]
+
+
+def test_cli_dry_run_reports_points_that_run_would_refuse(tmp_path, capsys):
+    """`sweep --dry-run` refuses per point exactly what `knotmm run` refuses (issue 11 item 8)."""
+    run_file = tmp_path / "r.toml"
+    run_file.write_text("[knot]\nbeads = 20\n")
+    assert main(["run", str(run_file), "--out", str(tmp_path / "run")]) == 2
+    refusal = capsys.readouterr().err.strip()
+    assert refusal.startswith("knotmm: error: ") and "knot.beads=20" in refusal
+    assert not (tmp_path / "run").exists()
+
+    out = tmp_path / "o"
+    path = tmp_path / "s.toml"
+    path.write_text('[sweep]\n"knot.beads" = [20, 30]\n')
+    assert main(["sweep", str(path), "--dry-run", "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    message = refusal.removeprefix("knotmm: error: ")
+    assert captured.err.strip().splitlines() == [f"knotmm: error: point knot.beads=20: {message}"]
+    listing = captured.out.splitlines()
+    assert listing[1].endswith("knot.beads=20  cannot run")
+    assert listing[2].endswith("knot.beads=30")
+    assert "1 of 2 points cannot run" in captured.out
+    assert not out.exists()
+
+
+def test_cli_dry_run_checks_the_integrator_per_point(tmp_path, capsys):
+    """A deterministic integrator at a finite Peclet number: `run` refuses it, so does the
+    dry run, for that point only."""
+    run_file = tmp_path / "r.toml"
+    run_file.write_text('[knot]\nbeads = 40\n[run]\nintegrator = "rk23"\npeclet = 50.0\n')
+    assert main(["run", str(run_file), "--out", str(tmp_path / "run")]) == 2
+    message = capsys.readouterr().err.strip().removeprefix("knotmm: error: ")
+    path = tmp_path / "s.toml"
+    path.write_text(
+        '[knot]\nbeads = 40\n[run]\nintegrator = "rk23"\n'
+        '[sweep]\n"run.peclet" = [inf, 50.0]\n'
+    )
+    assert main(["sweep", str(path), "--dry-run", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"knotmm: error: point run.peclet=50.0: {message}"]

@@ -16,7 +16,8 @@ import pytest
 from knotmm.analysis import load_run
 from knotmm.config import read_toml
 from knotmm.errors import ConfigError
-from knotmm.sweep.core import Sweep, _plan, read_summary, run_point, run_sweep
+from knotmm.sweep import Sweep, read_summary, run_point, run_sweep
+from knotmm.sweep.plan import plan_point
 
 TINY = {
     "knot": {"beads": 30},
@@ -153,10 +154,10 @@ def test_resume_after_interrupted_sweep(tmp_path):
 def test_changed_parameters_are_run_again(local_sweep, tmp_path):
     sweep, result = local_sweep
     point = sweep.points[0]
-    assert _plan(point, result.directory / point.name, False)[0] == "skip"
-    assert _plan(point, result.directory / point.name, True)[0] == "analyze"
+    assert plan_point(point, result.directory / point.name, False)[0] == "skip"
+    assert plan_point(point, result.directory / point.name, True)[0] == "analyze"
     changed = tiny_sweep(result.directory, **{**MIXED, "knot.minor_radius": [0.5] * 4})
-    assert _plan(changed.points[0], result.directory / point.name, False)[0] == "run"
+    assert plan_point(changed.points[0], result.directory / point.name, False)[0] == "run"
 
 
 def test_foreign_directory_is_refused(tmp_path):

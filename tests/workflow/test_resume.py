@@ -86,7 +86,9 @@ def test_kill_and_resume_equals_uninterrupted(tmp_path, reference, sig, kill_aft
         pytest.skip("the run finished before it could be killed")
     if sig == signal.SIGTERM:  # a batch system's stop: recorded, like Ctrl-C
         assert proc.returncode == 130
-        assert 'status = "interrupted"' in (directory / "run.toml").read_text()
+        text = (directory / "run.toml").read_text()
+        assert 'status = "interrupted"' in text
+        assert 'message = "interrupted by SIGTERM"' in text  # issue 11, item 11
         # stopped between two steps, with that exact state checkpointed
         assert _checkpoint_time(directory) == _time_reached(directory)
     assert main(["run", "--resume", str(directory), "--no-progress"]) == 0
@@ -99,6 +101,7 @@ def test_kill_and_resume_equals_uninterrupted(tmp_path, reference, sig, kill_aft
     for a, b in zip(rows[1:], ref_rows[1:], strict=True):
         ta, tb = a.split(","), b.split(",")
         assert ta[:2] == tb[:2]  # time and step
+        assert ta[-1] == tb[-1]  # velocity evaluations: none extra after a resume
         np.testing.assert_allclose([float(v) for v in ta[2:5]], [float(v) for v in tb[2:5]],
                                    atol=1e-6)
 
@@ -129,6 +132,7 @@ def test_ctrl_c_checkpoints_the_state_it_stopped_at(tmp_path, reference):
     assert proc.returncode == 130, err
     assert "stopping after the current step" in err
     assert "Traceback" not in err
+    assert 'message = "interrupted by SIGINT (Ctrl-C)"' in (directory / "run.toml").read_text()
     stopped = _time_reached(directory)
     assert _checkpoint_time(directory) == stopped
     assert main(["run", "--resume", str(directory), "--no-progress"]) == 0

@@ -1,25 +1,14 @@
-"""Tests of knotmm.knots.identify: the writhe kernel and knot identification."""
+"""Tests of knotmm.knots.writhe: the compiled kernel against a brute-force Gauss integral."""
 
 from __future__ import annotations
-
-import os
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from knotmm.knots import identify as knots
-from knotmm.knots.identify import UNKNOWN, identify_knot, topoly_available, writhe
-
-needs_topoly = pytest.mark.skipif(not topoly_available(), reason="topoly not installed")
-
-
-def torus_curve(p, q, n, r0=3.0, a=1.0):
-    """The study's torus-knot parametrisation sampled at equal parameter steps."""
-    alpha = np.linspace(0.0, 2.0 * np.pi * p, n, endpoint=False)
-    rho = r0 + a * np.sin(q * alpha / p)
-    return np.c_[rho * np.cos(alpha), rho * np.sin(alpha), a * np.cos(q * alpha / p)]
+from knotmm.knots import writhe as writhe_module
+from knotmm.knots.writhe import writhe
 
 
 def naive_gauss_writhe(x, m=12):
@@ -66,7 +55,7 @@ def test_planar_polygon_has_zero_writhe():
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_writhe_matches_brute_force_gauss_integral(seed):
+def test_writhe_matches_brute_force_gauss_integral(seed, torus_curve):
     # a trefoil with a random smooth distortion: strands stay well apart, so the midpoint
     # rule of the brute-force sum converges
     rng = np.random.default_rng(seed)
@@ -74,7 +63,7 @@ def test_writhe_matches_brute_force_gauss_integral(seed):
     assert writhe(x) == pytest.approx(naive_gauss_writhe(x, m=10), abs=2e-3)
 
 
-def test_trefoil_writhe_matches_brute_force_and_is_positive():
+def test_trefoil_writhe_matches_brute_force_and_is_positive(torus_curve):
     x = torus_curve(2, 3, 60)
     w = writhe(x)
     assert w > 3.0
@@ -87,7 +76,7 @@ def test_numba_kernel_matches_numpy_reference_and_leaves_input_alone():
     frames.setflags(write=False)
     before = frames.copy()
     fast = writhe(frames)
-    ref = knots._writhe_numpy(frames)
+    ref = writhe_module._writhe_numpy(frames)
     np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-8)
     np.testing.assert_array_equal(frames, before)
     assert fast.shape == (6,)
@@ -118,7 +107,7 @@ def test_writhe_of_random_polygons_is_odd_under_mirroring(seed, n):
     assert writhe(x * np.array([-1.0, 1.0, 1.0])) == pytest.approx(-w, abs=1e-9)
 
 
-def test_writhe_rejects_bad_input():
+def test_writhe_rejects_bad_input(torus_curve):
     with pytest.raises(ValueError, match="shape"):
         writhe(np.zeros((10, 2)))
     with pytest.raises(ValueError, match="at least 3"):
@@ -130,100 +119,3 @@ def test_writhe_rejects_bad_input():
 
 
 # -- knot identification -------------------------------------------------------------------
-@needs_topoly
-@pytest.mark.parametrize(
-    ("p", "q", "name"), [(2, 3, "3_1"), (3, 2, "3_1"), (2, 5, "5_1"), (2, 7, "7_1"), (3, 4, "8_19")]
-)
-def test_identify_torus_knots(p, q, name):
-    assert identify_knot(torus_curve(p, q, 150)) == name
-
-
-@needs_topoly
-def test_identify_unknot_and_chirality():
-    t = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
-    assert identify_knot(np.c_[np.cos(t), np.sin(t), 0.1 * np.sin(2 * t)]) == "0_1"
-    x = torus_curve(2, 3, 100)
-    assert identify_knot(x, chiral=True) == "+3_1"
-    assert identify_knot(x * np.array([1.0, 1.0, -1.0]), chiral=True) == "-3_1"
-
-
-@needs_topoly
-def test_identify_knot_lists_knots_with_the_same_polynomial():
-    x = torus_curve(2, 5, 120)
-    assert identify_knot(x) == "5_1"
-    assert set(identify_knot(x, minimal=False).split("|")) == {"5_1", "10_132"}
-
-
-def test_normalise_knot_name():
-    assert knots.normalise_knot_name("11a367") == "11a_367"
-    assert knots.normalise_knot_name("+11N34|-5.1#+3_1") == "+11n_34|-5_1#+3_1"
-    assert knots.normalise_knot_name("unknown") == "unknown"
-
-
-@needs_topoly
-def test_identify_knot_is_silent_and_keeps_stdin(capfd):
-    has_stdin = knots._fd_open(0)
-    before = os.fstat(0) if has_stdin else None
-    for _ in range(3):
-        identify_knot(torus_curve(2, 5, 80))
-    out, err = capfd.readouterr()
-    assert out == "" and err == ""
-    if has_stdin:
-        after = os.fstat(0)
-        assert (after.st_ino, after.st_dev) == (before.st_ino, before.st_dev)
-
-
-@needs_topoly
-def test_identify_knot_too_complex_is_unknown():
-    x = torus_curve(3, 7, 300)
-    assert identify_knot(x, max_cross=5) == UNKNOWN
-
-
-def test_identify_knot_without_topoly(monkeypatch):
-    monkeypatch.setattr(knots, "topoly_available", lambda: False)
-    assert identify_knot(torus_curve(2, 3, 60)) is None
-
-
-def test_identify_knot_rejects_batches():
-    with pytest.raises(ValueError, match="one frame"):
-        identify_knot(np.zeros((2, 10, 3)))
-
-
-def test_identify_knot_keeps_python_signal_handlers():
-    """topoly's C code installs its own termination handlers; ours must survive a call."""
-    import os
-    import signal
-    import time
-
-    from knotmm.knots.identify import identify_knot, topoly_available
-    from knotmm.shapes.templates import torus_knot
-
-    if not topoly_available():
-        pytest.skip("needs topoly")
-    hits = []
-    previous = signal.signal(signal.SIGTERM, lambda *args: hits.append(1))
-    try:
-        assert identify_knot(torus_knot(2, 3, 60)) == "3_1"
-        os.kill(os.getpid(), signal.SIGTERM)
-        time.sleep(0.05)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-    assert hits == [1]
-
-
-def test_identify_knot_leaves_the_recursion_limit_alone():
-    """topoly raises Python's recursion limit on every call; the caller's must come back."""
-    import sys
-
-    from knotmm.knots.identify import identify_knot, topoly_available
-    from knotmm.shapes.templates import torus_knot
-
-    if not topoly_available():
-        pytest.skip("needs topoly")
-    before = sys.getrecursionlimit()
-    sys.setrecursionlimit(1234)
-    try:
-        assert identify_knot(torus_knot(2, 3, 60)) == "3_1"
-        assert sys.getrecursionlimit() == 1234
-    finally:
-        sys.setrecursionlimit(before)

@@ -1,0 +1,306 @@
+"""The one registry of time steppers: names, properties, the ``"auto"`` policy, construction.
+
+Every integrator a run file may name (``run.integrator``) is one :class:`IntegratorInfo` in
+:data:`REGISTRY`: where its class lives, its order, whether it is adaptive and whether it
+integrates the stochastic (finite Peclet) equation, a one-line description and its default
+step. :mod:`knotmm.config` validates ``run.integrator`` against :data:`NAMES`;
+:func:`resolve` turns ``"auto"`` and an unset step into what a run uses; :func:`make` and
+:func:`integrator_from_config` build any of them.
+
+The classes are imported only when one is built (:meth:`IntegratorInfo.load`), so importing
+this module (and :mod:`knotmm.config`) costs no numba or scipy start-up.
+
+Adding an integrator: write its class in one module of :mod:`knotmm.dynamics` (a subclass
+of :class:`knotmm.dynamics.deterministic.Integrator`, with ``name`` and ``order``), and add
+one entry here (``docs/architecture.md``).
+
+Examples
+--------
+>>> resolve("auto", float("inf"), None)
+('rk23', 0.01)
+>>> resolve("auto", 2.0, None)
+('ito_heun', 0.002)
+>>> REGISTRY["rkc2"].adaptive
+True
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from knotmm.errors import ConfigError
+
+__all__ = [
+    "AUTO",
+    "BROWNIAN_NAMES",
+    "DEFAULT_BROWNIAN_TIMESTEP",
+    "DEFAULT_TIMESTEP",
+    "NAMES",
+    "REGISTRY",
+    "IntegratorInfo",
+    "integrator_from_config",
+    "make",
+    "resolve",
+]
+
+log = logging.getLogger(__name__)
+
+#: The ``run.integrator`` value that lets :func:`resolve` choose.
+AUTO = "auto"
+#: Step of deterministic runs when none is given (the first step of an adaptive integrator).
+DEFAULT_TIMESTEP = 0.01
+#: Step of Brownian integrators at finite Pe when none is given (see
+#: :mod:`knotmm.dynamics.brownian`, "Step size").
+DEFAULT_BROWNIAN_TIMESTEP = 0.002
+#: Above this fixed step (tau_d) a Brownian run warns: stiff bond modes go unstable.
+_BROWNIAN_STEP_WARNING = 0.01
+
+
+@dataclass(frozen=True)
+class IntegratorInfo:
+    """One registered integrator.
+
+    Attributes
+    ----------
+    name : str
+        The ``run.integrator`` value (equal to the class's ``name``).
+    module, class_name : str
+        Where the class lives (imported by :meth:`load`).
+    order : int
+        Order of accuracy (Brownian: weak order for the RPY mobility; in the deterministic
+        limit ``Pe = inf`` ``euler_maruyama`` is Euler, order 1, and ``ito_heun`` Heun,
+        order 2). Equal to the class's ``order``.
+    adaptive : bool
+        Chooses its own step from an error tolerance (``run.tolerance``).
+    brownian : bool
+        Integrates the stochastic equation at finite ``run.peclet`` (fixed step).
+    description : str
+        One line, for help texts.
+    default_timestep : float
+        ``run.timestep`` when none is given, in tau_d.
+    """
+
+    name: str
+    module: str
+    class_name: str
+    order: int
+    adaptive: bool
+    brownian: bool
+    description: str
+    default_timestep: float
+
+    def load(self) -> type:
+        """The integrator class (imports its module)."""
+        return getattr(importlib.import_module(self.module), self.class_name)
+
+
+_DET = "knotmm.dynamics.deterministic"
+_BROWN = "knotmm.dynamics.brownian"
+
+#: Every integrator, by ``run.integrator`` name, in the order help texts list them.
+REGISTRY: dict[str, IntegratorInfo] = {
+    info.name: info
+    for info in (
+        IntegratorInfo(
+            "rk23", _DET, "RK23", 3, True, False,
+            "Bogacki-Shampine 3(2), adaptive; the default at Pe = inf", DEFAULT_TIMESTEP,
+        ),
+        IntegratorInfo(
+            "rkc2", _DET, "RKC2", 2, True, False,
+            "Runge-Kutta-Chebyshev, adaptive step and stages, for very stiff chains",
+            DEFAULT_TIMESTEP,
+        ),
+        IntegratorInfo(
+            "heun", _DET, "Heun", 2, False, False, "explicit trapezoid, fixed step",
+            DEFAULT_TIMESTEP,
+        ),
+        IntegratorInfo(
+            "midpoint", _DET, "Midpoint", 2, False, False, "explicit midpoint, fixed step",
+            DEFAULT_TIMESTEP,
+        ),
+        IntegratorInfo(
+            "euler", _DET, "Euler", 1, False, False, "forward Euler, fixed step",
+            DEFAULT_TIMESTEP,
+        ),
+        IntegratorInfo(
+            "ito_heun", _BROWN, "ItoHeun", 1, False, True,
+            "Heun drift with Ito noise, fixed step; the default at finite Pe",
+            DEFAULT_BROWNIAN_TIMESTEP,
+        ),
+        IntegratorInfo(
+            "euler_maruyama", _BROWN, "EulerMaruyama", 1, False, True,
+            "Euler-Maruyama, fixed step (needs h <= 0.001 at Pe ~ 2)",
+            DEFAULT_BROWNIAN_TIMESTEP,
+        ),
+    )
+}
+
+#: Registered names, in :data:`REGISTRY`'s order.
+NAMES: tuple[str, ...] = tuple(REGISTRY)
+#: Names of the integrators of the stochastic equation.
+BROWNIAN_NAMES: tuple[str, ...] = tuple(n for n, info in REGISTRY.items() if info.brownian)
+
+
+def _info(name: str) -> IntegratorInfo:
+    try:
+        return REGISTRY[name]
+    except (KeyError, TypeError):
+        raise ConfigError(
+            f"run.integrator = {name!r}: expected {AUTO} or one of {', '.join(NAMES)}"
+        ) from None
+
+
+def resolve(integrator: str, peclet: float, timestep: float | None) -> tuple[str, float]:
+    """The integrator and step a run uses: ``"auto"`` and an unset step resolved.
+
+    ``"auto"`` is ``rk23`` at ``Pe = inf`` and ``ito_heun`` at a finite Peclet number. An
+    unset step is the integrator's ``default_timestep`` at finite Pe
+    (:data:`DEFAULT_BROWNIAN_TIMESTEP` for the Brownian ones) and :data:`DEFAULT_TIMESTEP`
+    at ``Pe = inf`` (where a Brownian integrator has no noise and is its deterministic
+    limit). So setting ``run.peclet`` alone gives a sound Brownian run.
+
+    Parameters
+    ----------
+    integrator : str
+        ``"auto"`` or a name in :data:`NAMES`.
+    peclet : float
+        ``Pe = d F0 / kT`` (``inf``: deterministic).
+    timestep : float or None
+        The step asked for, in tau_d; ``None``: the default.
+
+    Returns
+    -------
+    (str, float)
+        Integrator name and step in tau_d.
+
+    Raises
+    ------
+    ConfigError
+        For a name that is not registered.
+    """
+    finite = math.isfinite(float(peclet))
+    name = ("ito_heun" if finite else "rk23") if integrator == AUTO else integrator
+    info = _info(name)
+    if timestep is None:
+        timestep = info.default_timestep if finite else DEFAULT_TIMESTEP
+    return name, float(timestep)
+
+
+def make(
+    name: str,
+    timestep: float,
+    *,
+    peclet: float = math.inf,
+    seed: int | None = None,
+    noise="auto",
+    lanczos_tolerance: float = 1e-6,
+    tolerance: float = 1e-4,
+    max_timestep: float = 1.0,
+    min_timestep: float = 1e-7,
+):
+    """Build a registered integrator by name.
+
+    Parameters
+    ----------
+    name : str
+        A name in :data:`NAMES` (not ``"auto"``: see :func:`resolve`).
+    timestep : float
+        The step (fixed integrators) or first step (adaptive ones), in tau_d.
+    peclet : float
+        Brownian integrators: ``Pe = d F0 / kT`` (``inf``: no noise). A deterministic
+        integrator needs ``inf``.
+    seed : int or None
+        Brownian integrators: seed of the noise stream
+        (:func:`knotmm.dynamics.noise.noise_rng`).
+    noise : {"auto", "cholesky", "lanczos"} or callable
+        Brownian integrators: how ``B xi`` is drawn (:class:`knotmm.dynamics.noise.NoiseGenerator`).
+    lanczos_tolerance : float
+        Brownian integrators: tolerance of the Lanczos noise.
+    tolerance, max_timestep, min_timestep : float
+        Adaptive integrators: local error per step (d), largest step and floor (tau_d).
+
+    Returns
+    -------
+    knotmm.dynamics.deterministic.Integrator
+
+    Raises
+    ------
+    ConfigError
+        Naming ``run.integrator``, ``run.timestep``, ``run.peclet``, ``run.noise`` or
+        ``run.lanczos_tolerance``.
+    """
+    info = _info(name)
+    cls = info.load()
+    if info.brownian:
+        if not timestep > 0:
+            raise ConfigError(f"run.timestep = {timestep!r}: must be > 0 (in tau_d)")
+        return cls(
+            timestep, peclet=peclet, seed=seed, noise=noise, lanczos_tolerance=lanczos_tolerance
+        )
+    if math.isfinite(float(peclet)):
+        raise ConfigError(
+            f"run.integrator = {name!r} cannot integrate Brownian dynamics (run.peclet = "
+            f'{peclet:g}): leave run.integrator unset ("auto" picks ito_heun, step '
+            f'{DEFAULT_BROWNIAN_TIMESTEP:g}) or use "ito_heun" / "euler_maruyama" with a fixed '
+            f"run.timestep such as {DEFAULT_BROWNIAN_TIMESTEP:g}"
+        )
+    try:
+        if info.adaptive:
+            return cls(timestep, tolerance, max_timestep, min_timestep)
+        return cls(timestep)
+    except ValueError as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError(f"run.integrator = {name!r}: {exc}") from None
+
+
+def integrator_from_config(cfg: Mapping):
+    """The integrator a run file asks for, deterministic or Brownian.
+
+    ``run.integrator`` and ``run.timestep`` are resolved first (:func:`resolve`), then
+
+    * a Brownian integrator (``ito_heun``, ``euler_maruyama``) gets the fixed step,
+      ``kT = 1 / run.peclet`` (no noise at ``Pe = inf``), ``run.seed``, ``run.noise`` and
+      ``run.lanczos_tolerance``;
+    * a deterministic one at ``run.peclet = inf`` gets ``run.timestep``, ``run.tolerance``,
+      ``run.max_timestep`` and ``run.min_timestep``;
+    * a deterministic one at a finite ``run.peclet`` is a :class:`ConfigError` (adaptive
+      error control does not apply to the stochastic equation).
+
+    Parameters
+    ----------
+    cfg : knotmm.config.RunConfig or a mapping with the same dotted keys
+
+    Returns
+    -------
+    knotmm.dynamics.deterministic.Integrator
+    """
+    from knotmm.dynamics.brownian import thermal_energy
+
+    name, timestep = resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
+    peclet = float(cfg["run.peclet"])
+    thermal_energy(peclet)  # checks the range
+    if REGISTRY[name].brownian and math.isfinite(peclet) and timestep > _BROWNIAN_STEP_WARNING:
+        log.warning(
+            "run.timestep = %g with run.peclet = %g: above ~%g tau_d the stiff bond "
+            "modes are unstable or strongly biased (%g is a good step for ito_heun)",
+            timestep,
+            peclet,
+            _BROWNIAN_STEP_WARNING,
+            DEFAULT_BROWNIAN_TIMESTEP,
+        )
+    return make(
+        name,
+        timestep,
+        peclet=peclet,
+        seed=cfg["run.seed"],
+        noise=cfg["run.noise"],
+        lanczos_tolerance=cfg["run.lanczos_tolerance"],
+        tolerance=cfg["run.tolerance"],
+        max_timestep=cfg["run.max_timestep"],
+        min_timestep=cfg["run.min_timestep"],
+    )

@@ -1,0 +1,199 @@
+"""DCD files: their layout, frame counts, truncation, and reading them quietly.
+
+A DCD file (CHARMM/NAMD layout, as OpenMM's ``DCDFile`` and mdtraj write it) is a header
+followed by equally sized frames. The header holds the number of frames its writer
+counted; a process killed while writing leaves fewer whole frames in the file than that, or
+a partial frame at its end. :func:`dcd_layout` is the one place where that is measured:
+resuming a run (:func:`truncate_dcd`), loading one (:func:`read_dcd`) and reading a start
+frame from a file (:mod:`knotmm.io.structure`) all use it.
+
+Coordinates in a knotmm DCD are in Angstrom (1 d = 10 A); this module does not convert.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import struct
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from knotmm.errors import TrajectoryFileError
+
+__all__ = ["DCDLayout", "dcd_layout", "quiet_c_stdout", "read_dcd", "truncate_dcd"]
+
+#: Bytes of one unit-cell record (4-byte marker, six float64, 4-byte marker).
+_CELL_BYTES = 56
+
+
+@dataclass(frozen=True)
+class DCDLayout:
+    """Sizes and counts of a DCD file.
+
+    Attributes
+    ----------
+    header_bytes : int
+        Bytes before the first frame.
+    frame_bytes : int
+        Bytes of one frame (three coordinate records, plus a unit cell if present).
+    n_atoms : int
+    claimed_frames : int
+        The frame count in the header (what the writer counted).
+    complete_frames : int
+        Whole frames in the file.
+    partial_bytes : int
+        Bytes after the last whole frame (a frame cut short).
+    byteorder : {"<", ">"}
+    """
+
+    header_bytes: int
+    frame_bytes: int
+    n_atoms: int
+    claimed_frames: int
+    complete_frames: int
+    partial_bytes: int
+    byteorder: str = "<"
+
+    @property
+    def truncated(self) -> bool:
+        """Whether the file holds fewer whole frames than its header claims, or a partial one."""
+        return self.complete_frames < self.claimed_frames or self.partial_bytes > 0
+
+
+def dcd_layout(path) -> DCDLayout:
+    """Measure a DCD file's layout from its header and its size.
+
+    Raises
+    ------
+    TrajectoryFileError
+        The file is missing, not a DCD, or cut inside its header.
+    """
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+            order = None
+            for candidate in ("<", ">"):
+                if len(head) == 8 and head[4:8] == b"CORD" and struct.unpack(
+                        candidate + "i", head[:4])[0] == 84:
+                    order = candidate
+                    break
+            if order is None:
+                raise TrajectoryFileError(f"{str(path)!r} is not a DCD file (bad header)")
+            fields = fh.read(84)  # the rest of the first record and its end marker
+            if len(fields) < 84:
+                raise TrajectoryFileError(f"{str(path)!r} is cut inside its DCD header")
+            claimed = struct.unpack(order + "i", fields[0:4])[0]
+            # after 84, 'CORD': nine ints (claimed at 8), the time step (44), then at 48
+            # the unit-cell flag
+            has_cell = struct.unpack(order + "i", fields[40:44])[0]
+            title = fh.read(4)
+            if len(title) < 4:
+                raise TrajectoryFileError(f"{str(path)!r} is cut inside its DCD header")
+            title_bytes = struct.unpack(order + "i", title)[0]
+            fh.seek(104 + title_bytes, os.SEEK_SET)
+            atoms = fh.read(4)
+            if len(atoms) < 4:
+                raise TrajectoryFileError(f"{str(path)!r} is cut inside its DCD header")
+            n_atoms = struct.unpack(order + "i", atoms)[0]
+    except OSError as exc:
+        raise TrajectoryFileError(f"{str(path)!r} cannot be read ({exc.strerror or exc})") \
+            from None
+    header = 104 + title_bytes + 8
+    if n_atoms <= 0 or header > size:
+        raise TrajectoryFileError(f"{str(path)!r} is cut inside its DCD header")
+    frame = 3 * (8 + 4 * n_atoms) + (_CELL_BYTES if has_cell else 0)
+    complete, partial = divmod(size - header, frame)
+    return DCDLayout(header, frame, n_atoms, max(0, claimed), complete, partial, order)
+
+
+def truncate_dcd(path, n_frames: int) -> None:
+    """Cut a DCD file back to its first ``n_frames`` frames and fix the header's count.
+
+    Raises
+    ------
+    TrajectoryFileError
+        The file is missing, damaged, or holds fewer than ``n_frames`` whole frames.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise TrajectoryFileError(f"trajectory {str(path)!r} is missing; cannot resume")
+    layout = dcd_layout(path)
+    if layout.complete_frames < n_frames:
+        raise TrajectoryFileError(
+            f"trajectory {str(path)!r} holds {layout.complete_frames} whole frames but the "
+            f"checkpoint counts {n_frames}; the files do not belong together"
+        )
+    order = layout.byteorder
+    with open(path, "r+b") as fh:
+        fh.truncate(layout.header_bytes + n_frames * layout.frame_bytes)
+        fh.seek(8, os.SEEK_SET)
+        fh.write(struct.pack(order + "i", n_frames))
+        fh.seek(20, os.SEEK_SET)  # the last step: the header's time step is one frame
+        fh.write(struct.pack(order + "i", max(n_frames - 1, 0)))
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+@contextlib.contextmanager
+def quiet_c_stdout():
+    """Keep what C code prints to descriptor 1 (mdtraj's DCD plugin) off the terminal."""
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError):  # no usable descriptor 1: nothing to silence
+        yield
+        return
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 1)
+        try:
+            yield
+        finally:
+            with contextlib.suppress(OSError, ValueError):
+                sys.stdout.flush()
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+def read_dcd(path) -> tuple[np.ndarray, list[str]]:
+    """Read a DCD's whole frames (Angstrom, float32) and notes on what was dropped.
+
+    Returns
+    -------
+    xyz : ndarray, shape (n_frames, n_atoms, 3), float32, in Angstrom
+    notes : list of str
+        A note when the file holds fewer whole frames than its header claims.
+
+    Raises
+    ------
+    TrajectoryFileError
+        The file cannot be read as a DCD (empty, cut inside its header, not a DCD).
+    """
+    from mdtraj.formats import DCDTrajectoryFile
+
+    path = Path(path)
+    notes: list[str] = []
+    try:
+        layout = dcd_layout(path)
+    except TrajectoryFileError:
+        layout = None  # mdtraj's own message below says what is wrong
+    try:
+        with quiet_c_stdout(), DCDTrajectoryFile(str(path)) as fh:
+            xyz, _, _ = fh.read()
+    except OSError as exc:
+        raise TrajectoryFileError(
+            f"{path}: cannot be read as a DCD trajectory ({exc}); the file is empty, "
+            "truncated inside its header or not a DCD: re-run or give the right file"
+        ) from None
+    if layout is not None and layout.complete_frames < layout.claimed_frames:
+        notes.append(
+            f"{path.name}: the header claims {layout.claimed_frames} frames but only "
+            f"{layout.complete_frames} are complete (the run was probably interrupted); "
+            "the partial frame was dropped"
+        )
+    return np.asarray(xyz), notes

@@ -1,0 +1,350 @@
+"""The run directory: its file names, ``run.toml``, the run status, preparing and locking it.
+
+A run directory is a contract other tools rely on (``docs/architecture.md``):
+
+=================== =========================================================================
+``trajectory.dcd``  frames in Angstrom (1 d = 10 A), no unit cell; frame 0 is the start and
+                    frame k the state at ``k * output.frame_interval`` tau_d
+``topology.pdb``    the starting positions, one residue ``BEA`` per bead, CONECT records for
+                    every bond including the ring closure
+``run.toml``        every resolved parameter (a valid run file) plus a ``[knotmm]`` table:
+                    version, status (:data:`STATUSES`), template facts, and the run's summary
+``observables.csv`` time (tau_d), step, centre of mass (d), energy per term (F0 d), longest
+                    bond (d), current step size, velocity evaluations
+``checkpoint.npz``  the simulation state to resume from (:mod:`knotmm.engine.checkpoint`)
+``analysis.json``   what ``knotmm analyze`` found (:mod:`knotmm.analysis.core`)
+``view.vmd``        a VMD script: ``vmd -e view.vmd`` loads the pair and draws the ring
+=================== =========================================================================
+
+Every module that names one of these files imports the name from here. While a process
+writes a run directory it holds :data:`LOCK_FILE` locked (:class:`RunLock`), so that a
+second run, an ``--overwrite`` or a ``--resume`` of the same directory is refused.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import os
+from pathlib import Path
+from typing import Any
+
+from knotmm.errors import ConfigError, KnotmmError, RunDirectoryError
+
+__all__ = [
+    "ANALYSIS_FILE",
+    "CHECKPOINT_FILE",
+    "LOCK_FILE",
+    "OBSERVABLES_FILE",
+    "RUN_FILE",
+    "RUN_FILES",
+    "STATUSES",
+    "STATUS_FAULT",
+    "STATUS_FINISHED",
+    "STATUS_INTERRUPTED",
+    "STATUS_RUNNING",
+    "TOPOLOGY_FILE",
+    "TRAJECTORY_FILE",
+    "VMD_FILE",
+    "OutputError",
+    "RunLock",
+    "describe_os_error",
+    "prepare_directory",
+    "read_facts",
+    "run_file_header",
+    "run_status",
+    "write_run_toml",
+    "write_vmd_script",
+    "writing",
+]
+
+#: Frames (Angstrom, DCD).
+TRAJECTORY_FILE = "trajectory.dcd"
+#: Starting positions and bonds (PDB).
+TOPOLOGY_FILE = "topology.pdb"
+#: The resolved run file and the ``[knotmm]`` facts table.
+RUN_FILE = "run.toml"
+#: One row of observables per report time (CSV).
+OBSERVABLES_FILE = "observables.csv"
+#: The simulation state to resume from.
+CHECKPOINT_FILE = "checkpoint.npz"
+#: The analysis of the run.
+ANALYSIS_FILE = "analysis.json"
+#: VMD script loading the topology and the trajectory.
+VMD_FILE = "view.vmd"
+#: Held locked (``flock``) by the process writing the directory; holds its process id.
+LOCK_FILE = ".knotmm.lock"
+
+#: Files knotmm writes into a run directory (and may replace with ``overwrite``).
+RUN_FILES = (
+    TRAJECTORY_FILE,
+    TOPOLOGY_FILE,
+    RUN_FILE,
+    OBSERVABLES_FILE,
+    VMD_FILE,
+    CHECKPOINT_FILE,
+    ANALYSIS_FILE,
+)
+
+#: ``[knotmm] status`` values: a process is writing the run (or was killed doing so).
+STATUS_RUNNING = "running"
+#: The run reached ``run.duration``.
+STATUS_FINISHED = "finished"
+#: The dynamics broke down or a file could not be written; ``message`` says why.
+STATUS_FAULT = "fault"
+#: Stopped by a signal (Ctrl-C, SIGTERM); ``message`` names it.
+STATUS_INTERRUPTED = "interrupted"
+STATUSES = (STATUS_RUNNING, STATUS_FINISHED, STATUS_FAULT, STATUS_INTERRUPTED)
+
+VMD_SCRIPT = """\
+# VMD script written by knotmm {version}: run `vmd -e view.vmd` in this directory.
+# Lengths are in Angstrom: one bead diameter d = 10 A.
+mol new topology.pdb type pdb waitfor all
+mol addfile trajectory.dcd type dcd first 0 last -1 step 1 waitfor all
+set beads [atomselect top all]
+$beads set radius 5.0
+mol delrep 0 top
+mol representation VDW 1.0 16
+mol color ResID
+mol material AOChalky
+mol addrep top
+mol representation Bonds 2.0 12
+mol color ResID
+mol addrep top
+display projection Orthographic
+axes location LowerLeft
+animate goto 0
+"""
+
+
+class OutputError(KnotmmError, OSError):
+    """A file of a run directory cannot be written (read-only, full disk, no permission).
+
+    Exit code 2 (nothing written yet); :class:`knotmm.errors.SimulationFault` and exit code
+    3 when it happens during a run.
+    """
+
+
+def describe_os_error(path, exc: OSError) -> str:
+    """One line naming ``path`` and the cause of ``exc`` (``"...: disk full (ENOSPC)"``)."""
+    causes = {
+        errno.ENOSPC: "no space left on the device",
+        errno.EDQUOT: "disk quota exceeded",
+        errno.EROFS: "read-only file system",
+        errno.EACCES: "permission denied",
+        errno.EPERM: "operation not permitted",
+    }
+    cause = causes.get(exc.errno) or (exc.strerror or str(exc)).lower()
+    code = errno.errorcode.get(exc.errno or 0)
+    where = exc.filename if getattr(exc, "filename", None) else path
+    return f"cannot write {str(where)!r}: {cause}" + (f" ({code})" if code else "")
+
+
+@contextlib.contextmanager
+def writing(path):
+    """Turn an ``OSError`` raised inside the block into an :class:`OutputError` naming ``path``."""
+    try:
+        yield
+    except KnotmmError:
+        raise
+    except OSError as exc:
+        raise OutputError(describe_os_error(path, exc)) from None
+
+
+# -- run.toml -------------------------------------------------------------------------------
+def run_file_header(version: str) -> str:
+    """The comment lines at the top of a run directory's ``run.toml``."""
+    return (
+        f"# knotmm run file, written by knotmm {version}.\n"
+        f"# Every resolved parameter; use it again with `knotmm run run.toml`.\n"
+        f"# Units: lengths in d, forces in F0, times in tau_d.\n\n"
+    )
+
+
+def write_run_toml(directory, cfg, facts: dict[str, Any]) -> None:
+    """Write ``run.toml`` atomically: the resolved run file plus the ``[knotmm]`` facts table.
+
+    Parameters
+    ----------
+    directory : path
+    cfg : knotmm.config.RunConfig
+    facts : dict
+        The ``[knotmm]`` table; None values are left out.
+
+    If the atomic write fails (a full disk has no room for the temporary copy), the file is
+    rewritten in place, so that a run never leaves ``status = "running"`` behind when it
+    can help it; :class:`OutputError` if that fails too.
+    """
+    import tomli_w
+
+    from knotmm import __version__
+    from knotmm.io.atomic import write_text_atomic
+
+    data = cfg.to_dict()
+    data["knotmm"] = {k: v for k, v in facts.items() if v is not None}
+    text = run_file_header(__version__) + tomli_w.dumps(data)
+    path = Path(directory) / RUN_FILE
+    try:
+        write_text_atomic(path, text)
+    except OSError as first:
+        try:
+            with open(path, "r+b" if path.exists() else "wb") as fh:
+                fh.truncate(0)
+                fh.write(text.encode("utf-8"))
+                fh.flush()
+                os.fsync(fh.fileno())
+        except OSError:
+            raise OutputError(describe_os_error(path, first)) from None
+
+
+def read_facts(directory) -> dict[str, Any]:
+    """The ``[knotmm]`` table of a run directory's ``run.toml`` (``{}`` if it has none)."""
+    from knotmm.config import read_toml
+
+    return dict(read_toml(Path(directory) / RUN_FILE).get("knotmm", {}))
+
+
+def run_status(directory) -> str | None:
+    """The ``[knotmm] status`` of a run directory, or None if it has no readable run.toml."""
+    path = Path(directory) / RUN_FILE
+    if not path.exists():
+        return None
+    try:
+        return str(read_facts(directory).get("status", "unknown"))
+    except ConfigError:
+        return "unreadable"
+
+
+def write_vmd_script(directory, version: str) -> None:
+    """Write ``view.vmd`` (atomically)."""
+    from knotmm.io.atomic import write_text_atomic
+
+    write_text_atomic(Path(directory) / VMD_FILE, VMD_SCRIPT.format(version=version))
+
+
+# -- preparing and owning a directory -------------------------------------------------------
+def prepare_directory(directory, overwrite: bool) -> None:
+    """Check that ``directory`` may be written; with ``overwrite``, remove knotmm's files.
+
+    Only the files of :data:`RUN_FILES` and knotmm's plots are removed, never anything else.
+    The lock file (:data:`LOCK_FILE`) does not count as content.
+
+    Raises
+    ------
+    RunDirectoryError
+        If the directory holds a run (or other files) and ``overwrite`` is false.
+    """
+    directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        raise RunDirectoryError(
+            f"output directory {str(directory)!r} is a file; choose another --out"
+        )
+    if not directory.exists() or not any(p.name != LOCK_FILE for p in directory.iterdir()):
+        return
+    status = run_status(directory)
+    if not overwrite:
+        if status is None:
+            raise RunDirectoryError(
+                f"output directory {str(directory)!r} is not empty and holds no knotmm run; "
+                f"choose another --out (or pass --overwrite to write knotmm's files there)"
+            )
+        raise RunDirectoryError(
+            f"output directory {str(directory)!r} already holds a {status} run; pass "
+            f"--overwrite to replace it, or choose another --out"
+        )
+    with writing(directory):
+        for name in RUN_FILES:
+            p = directory / name
+            if p.exists():
+                p.unlink()
+        for p in directory.glob("*.png"):
+            p.unlink()
+
+
+class RunLock:
+    """Exclusive ownership of a run directory for a process's run (``fcntl.flock``).
+
+    :data:`LOCK_FILE` in the directory is locked and holds the owner's process id. The
+    kernel drops the lock when its process ends, however it ends (SIGKILL included), so a
+    lock file left by a dead process is stale and simply taken over. The file is removed on
+    :meth:`release`.
+
+    Parameters
+    ----------
+    directory : path
+        Created if missing.
+    what : str
+        What is refused, for the message (``"run"``, ``"--resume"``).
+
+    Raises
+    ------
+    RunDirectoryError
+        Another live process owns the directory (the message names its process id).
+    OutputError
+        The directory or the lock file cannot be created.
+    """
+
+    def __init__(self, directory, what: str = "run"):
+        self.directory = Path(directory)
+        self.path = self.directory / LOCK_FILE
+        self._fd: int | None = None
+        with writing(self.directory):
+            self.directory.mkdir(parents=True, exist_ok=True)
+        while self._fd is None:
+            with writing(self.path):
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                owner = _read_pid(fd)
+                os.close(fd)
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise OutputError(describe_os_error(self.path, exc)) from None
+                who = f"process {owner}" if owner else "another process"
+                raise RunDirectoryError(
+                    f"{what} refused: run directory {str(self.directory)!r} is in use by "
+                    f"{who} (lock {LOCK_FILE}); wait for it to end or stop it first"
+                ) from None
+            try:
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if not same:  # removed by its last owner between our open and our lock
+                os.close(fd)
+                continue
+            self._fd = fd
+        try:
+            os.ftruncate(self._fd, 0)
+            os.pwrite(self._fd, f"{os.getpid()}\n".encode(), 0)
+        except OSError:
+            pass  # a full disk: the lock holds even without the pid written
+
+    def release(self) -> None:
+        """Remove the lock file and unlock (idempotent)."""
+        if self._fd is None:
+            return
+        with contextlib.suppress(OSError):
+            self.path.unlink()
+        with contextlib.suppress(OSError):
+            os.close(self._fd)
+        self._fd = None
+
+    @property
+    def held(self) -> bool:
+        """Whether this object still holds the lock."""
+        return self._fd is not None
+
+    def __enter__(self) -> RunLock:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def _read_pid(fd: int) -> int | None:
+    try:
+        text = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+        return int(text) if text else None
+    except (OSError, ValueError):
+        return None

@@ -1,0 +1,77 @@
+"""The bead Topology: the one description of a knotmm chain's atoms and bonds.
+
+A knotmm chain is one chain ``A`` of beads, one residue ``BEA`` per bead (numbered from 1),
+one atom ``B`` per residue (element carbon, only so that viewers draw it), bead ``i`` bonded
+to bead ``i + 1`` and the last bead bonded to the first. The residue name is non-standard on
+purpose: mdtraj writes ``CONECT`` records only for non-standard residues, and without them
+VMD draws no chain. The engine, the PDB writer (:mod:`knotmm.io.pdb`, through
+``mdtraj.Topology.from_openmm``) and the synthetic run directories all use
+:func:`bead_topology`; see ``docs/architecture.md``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import openmm.app
+
+__all__ = ["BEAD_ATOM", "BEAD_RESIDUE", "bead_topology", "ring_bonds"]
+
+#: Residue name of a bead (non-standard, so that mdtraj writes CONECT records).
+BEAD_RESIDUE = "BEA"
+#: Atom name of a bead.
+BEAD_ATOM = "B"
+
+
+def ring_bonds(n_beads: int) -> np.ndarray:
+    """Bonded pairs of a ring: ``(i, i+1)`` and the closure ``(N-1, 0)``.
+
+    Returns
+    -------
+    ndarray, shape (n_beads, 2), int
+    """
+    i = np.arange(n_beads)
+    return np.stack([i, (i + 1) % n_beads], axis=1)
+
+
+def bead_topology(n_beads: int, closed: bool = True) -> openmm.app.Topology:
+    """The OpenMM Topology of a bead chain.
+
+    Parameters
+    ----------
+    n_beads : int
+        Number of beads, at least 3 for a closed chain (2 for an open one).
+    closed : bool, optional
+        If true (knotmm's chains), bead ``n_beads - 1`` is bonded back to bead 0.
+
+    Returns
+    -------
+    openmm.app.Topology
+        One chain ``A``, ``n_beads`` residues ``BEA`` numbered from 1, one atom ``B``
+        (carbon) each, bonds ``i -> i + 1`` and, if ``closed``, ``n_beads - 1 -> 0``.
+
+    Raises
+    ------
+    ValueError
+        For a bead count that is not an integer or too small.
+    """
+    if isinstance(n_beads, bool) or not isinstance(n_beads, (int, np.integer)):
+        raise ValueError(f"n_beads={n_beads!r}: expected an integer")
+    minimum = 3 if closed else 2
+    if n_beads < minimum:
+        raise ValueError(
+            f"n_beads={n_beads}: a {'closed' if closed else 'open'} chain needs "
+            f"at least {minimum} beads"
+        )
+    n = int(n_beads)
+    top = openmm.app.Topology()
+    chain = top.addChain("A")
+    element = openmm.app.Element.getBySymbol("C")
+    atoms = []
+    for i in range(n):
+        res = top.addResidue(BEAD_RESIDUE, chain, id=str(i + 1))
+        atoms.append(top.addAtom(BEAD_ATOM, element, res))
+    for i in range(n - 1):
+        top.addBond(atoms[i], atoms[i + 1])
+    if closed:
+        top.addBond(atoms[-1], atoms[0])
+    return top

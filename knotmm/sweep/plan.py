@@ -1,0 +1,208 @@
+"""Planning a sweep: its points, the seeds of replicas, and what to do with each point.
+
+* :func:`expand` turns ``{key: [values...]}`` into points (``"grid"`` or ``"zip"``);
+* :func:`replica_seeds` derives the seeds of ``seeds = K`` replicas with
+  ``numpy.random.SeedSequence.spawn``, so a replica's seed does not depend on K;
+* :func:`point_name` names a point's directory from its swept values;
+* :func:`plan_point` decides, from a point's run directory, whether to skip it (finished,
+  same parameters), only analyse it, resume it from its checkpoint, or run it from the start.
+
+See ``docs/architecture.md`` for the sweep directory.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from knotmm.config import RunConfig, read_toml, resolve_stepping
+from knotmm.errors import ConfigError
+from knotmm.io.rundir import (
+    ANALYSIS_FILE,
+    RUN_FILE,
+    STATUS_FINISHED,
+    STATUS_INTERRUPTED,
+    STATUS_RUNNING,
+    run_status,
+)
+from knotmm.sweep.summary import summary_values, time_reached
+
+__all__ = [
+    "ACTIONS",
+    "SweepPoint",
+    "expand",
+    "format_value",
+    "plan_point",
+    "point_name",
+    "replica_seeds",
+]
+
+log = logging.getLogger(__name__)
+
+#: What :func:`plan_point` may decide for a point.
+ACTIONS = ("skip", "analyze", "resume", "run")
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """One point of a sweep.
+
+    Attributes
+    ----------
+    index : int
+        Position in the sweep (row of ``summary.csv``).
+    name : str
+        Directory name inside the sweep directory.
+    values : dict
+        The swept keys and this point's values (plus ``run.seed`` for a replica).
+    replica : int or None
+        Replica index for ``seeds = K`` ensembles.
+    config : RunConfig
+        The full, validated run configuration (``output.directory`` = the point directory).
+    """
+
+    index: int
+    name: str
+    values: dict[str, Any]
+    replica: int | None
+    config: RunConfig
+
+
+def expand(values: Mapping[str, Sequence[Any]], mode: str = "grid") -> list[dict[str, Any]]:
+    """Expand ``{key: [values...]}`` into a list of points ``{key: value}``.
+
+    Parameters
+    ----------
+    values : mapping of str to sequence
+        Swept keys and their values, in order.
+    mode : {"grid", "zip"}
+        ``"grid"``: the Cartesian product, the last key varying fastest
+        (``len = prod(len(v))``); ``"zip"``: the i-th values together (all lists of equal
+        length).
+
+    Returns
+    -------
+    list of dict
+
+    Examples
+    --------
+    >>> expand({"a": [1, 2], "b": [3, 4]})
+    [{'a': 1, 'b': 3}, {'a': 1, 'b': 4}, {'a': 2, 'b': 3}, {'a': 2, 'b': 4}]
+    >>> expand({"a": [1, 2], "b": [3, 4]}, mode="zip")
+    [{'a': 1, 'b': 3}, {'a': 2, 'b': 4}]
+    """
+    keys = list(values)
+    lists = [list(values[k]) for k in keys]
+    if mode == "grid":
+        return [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*lists)]
+    if mode == "zip":
+        lengths = {k: len(v) for k, v in zip(keys, lists, strict=True)}
+        if len(set(lengths.values())) > 1:
+            listed = ", ".join(f"{k} has {n}" for k, n in lengths.items())
+            raise ConfigError(
+                f'[sweep] mode = "zip" needs lists of equal length: {listed}; make them equal '
+                f'or use mode = "grid"'
+            )
+        return [dict(zip(keys, combo, strict=True)) for combo in zip(*lists, strict=True)]
+    raise ConfigError(f'[sweep] mode = {mode!r}: expected "grid" or "zip"')
+
+
+def replica_seeds(base_seed: int, count: int) -> list[int]:
+    """Seeds of ``count`` replicas, derived reproducibly from ``base_seed``.
+
+    Replica k gets the first 32-bit word of ``numpy.random.SeedSequence(base_seed).spawn(count)[k]``
+    (spawn key ``(k,)``), so its seed does not depend on ``count``: adding replicas keeps the
+    seeds of the existing ones.
+
+    Returns
+    -------
+    list of int, length count, each in [0, 2**32)
+    """
+    children = np.random.SeedSequence(int(base_seed)).spawn(int(count))
+    return [int(c.generate_state(1, dtype=np.uint32)[0]) for c in children]
+
+
+def format_value(value: Any) -> str:
+    """A value as it appears in a point directory name (and in summary.csv)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (list, tuple)):
+        return "_".join(format_value(v) for v in value)
+    text = str(value)
+    return "".join(c if c.isalnum() or c in "._-+" else "_" for c in text)
+
+
+def point_name(values: Mapping[str, Any], replica: int | None = None) -> str:
+    """The directory name of a point, from its swept values (stable, readable).
+
+    Examples
+    --------
+    >>> point_name({"knot.beads": 40})
+    'knot.beads=40'
+    >>> point_name({"knot.p": 2, "model.bending_stiffness": 0.5}, replica=3)
+    'knot.p=2,model.bending_stiffness=0.5,replica=3'
+    """
+    parts = [f"{k}={format_value(v)}" for k, v in values.items()]
+    if replica is not None:
+        parts.append(f"replica={replica}")
+    return ",".join(parts) if parts else "point"
+
+
+def _stored_config_matches(point: SweepPoint, directory: Path) -> bool:
+    """Whether the run in ``directory`` was made with this point's parameters."""
+    try:
+        stored = read_toml(directory / RUN_FILE)
+    except ConfigError:
+        return False
+    wanted = point.config.to_dict(include_unset=False)
+    # a run file records the integrator and step it used ("auto" and an unset step resolved)
+    name, timestep = resolve_stepping(point.config)
+    wanted["run"].update(integrator=name, timestep=timestep)
+    for table, keys in wanted.items():
+        for key, value in keys.items():
+            if table == "output" and key == "directory":
+                continue
+            if stored.get(table, {}).get(key) != value:
+                return False
+    return True
+
+
+def plan_point(point: SweepPoint, directory: Path, reanalyze: bool) -> tuple[str, dict | None]:
+    """What to do with a point: ``("skip", values)``, or ``("analyze" | "resume" | "run", None)``.
+
+    A finished run with this point's parameters is skipped (or only analysed when it has no
+    ``analysis.json`` or ``reanalyze``); an interrupted or killed one with the same
+    parameters is resumed from its checkpoint; anything else is run from the start.
+    """
+    status = run_status(directory)
+    if status is None:
+        return "run", None
+    same = _stored_config_matches(point, directory)
+    if status in (STATUS_INTERRUPTED, STATUS_RUNNING) and same:
+        log.info("point %s: %s run, resuming it", point.name, status)
+        return "resume", None
+    if status != STATUS_FINISHED or not same:
+        finished = status == STATUS_FINISHED
+        why = "made with other parameters" if same is False and finished else status
+        log.info("point %s: run %s, running it again", point.name, why)
+        return "run", None
+    if reanalyze:
+        return "analyze", None
+    try:
+        analysis = json.loads((directory / ANALYSIS_FILE).read_text())
+    except (OSError, ValueError):
+        return "analyze", None
+    values = summary_values(analysis)
+    values["time_reached"] = time_reached(directory)
+    return "skip", values

@@ -1,0 +1,150 @@
+"""One sweep point: run (or resume, or only analyse) it and return its summary values.
+
+:func:`run_point` is the function every executor runs (inline, in a local worker process,
+on a Dask worker), so every executor gives the same numbers. It depends only on its
+argument and the files, and never raises for a failure of the point: the failure becomes
+the point's ``status`` and ``error``.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from knotmm.config import RunConfig
+from knotmm.errors import ConfigError
+from knotmm.sweep.summary import summary_values, time_reached
+
+__all__ = ["INTERRUPT_EXIT", "error_text", "lost_result", "run_point"]
+
+log = logging.getLogger(__name__)
+
+#: Exit status of a local worker stopped by SIGINT.
+INTERRUPT_EXIT = 130
+
+
+class WorkerState:
+    """In a local worker process: a point is being computed / the sweep is being stopped."""
+
+    running = False
+    stopping = False
+
+
+def error_text(exc: BaseException) -> str:
+    """An exception as one line: ``"TypeName: message"``."""
+    text = " ".join(str(exc).split()) or "no message"
+    return f"{type(exc).__name__}: {text}"
+
+
+def lost_result(name: str, why: str) -> dict[str, Any]:
+    """The result of a point whose worker never returned one (``status = "error"``)."""
+    return {"name": name, "status": "error", "error": why, "values": {}}
+
+
+def leave() -> None:  # pragma: no cover - runs in the worker processes
+    """End a local worker now, with the processes it started (the runs' knot-check workers)."""
+    import signal
+
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    children = multiprocessing.active_children()
+    for child in children:
+        child.kill()
+    for child in children:
+        child.join(timeout=2.0)
+    os._exit(INTERRUPT_EXIT)
+
+
+def _interrupted(name: str) -> dict[str, Any]:
+    if WorkerState.stopping:  # a local worker told to stop: the run's files are closed, leave
+        leave()
+    return {"name": name, "status": "pending", "error": "interrupted", "values": {}}
+
+
+def run_point(task: Mapping[str, Any]) -> dict[str, Any]:
+    """Run (or only analyse) one sweep point; never raises for a failure of the point.
+
+    This is the function that worker processes and Dask workers execute. It depends only on
+    its argument and the files, so local and Dask execution give the same numbers.
+
+    Parameters
+    ----------
+    task : dict
+        ``name`` (str), ``directory`` (absolute path of the point's run directory),
+        ``config`` (nested run-file dict), ``action`` (``"run"``: simulate then analyse,
+        ``"resume"``: continue an interrupted run from its checkpoint, or run it again when
+        that is not possible, then analyse, ``"analyze"``: analyse an existing finished
+        run), ``analysis`` (keyword arguments of
+        :func:`knotmm.analysis.analyze_run`: ``t_from``, ``t_to``, ``plots``,
+        ``knot_samples``).
+
+    Returns
+    -------
+    dict
+        ``name``, ``status`` (one of :data:`knotmm.sweep.summary.STATUSES`), ``error``
+        (one line or None), ``values`` (:func:`knotmm.sweep.summary.summary_values`, with
+        ``time_reached``).
+    """
+    WorkerState.running = True
+    # the run's warnings (a change of knot type, ...) are in its run.toml and analysis.json;
+    # a sweep of many points would otherwise print them all, interleaved
+    knotmm_log = logging.getLogger("knotmm")
+    level = knotmm_log.level
+    if knotmm_log.getEffectiveLevel() < logging.ERROR:
+        knotmm_log.setLevel(logging.ERROR)
+    try:
+        return _run_point(task)
+    finally:
+        knotmm_log.setLevel(level)
+        WorkerState.running = False
+
+
+def _run_point(task: Mapping[str, Any]) -> dict[str, Any]:
+    from knotmm.errors import SimulationFault
+
+    name = task["name"]
+    directory = Path(task["directory"])
+    status, error, analysis = "finished", None, None
+    action = task.get("action", "run")
+    try:
+        if action == "resume":
+            from knotmm.errors import RunDirectoryError, TrajectoryFileError
+            from knotmm.workflow import resume
+
+            try:
+                resume(directory, progress=False)
+            except (ConfigError, TrajectoryFileError, RunDirectoryError) as exc:
+                log.info("point %s cannot be resumed (%s): running it again", name, exc)
+                action = "run"
+        if action == "run":
+            from knotmm.workflow import run
+
+            cfg = RunConfig.from_dict(task["config"])
+            run(cfg, directory=directory, overwrite=True, progress=False)
+    except SimulationFault as exc:
+        status, error = "fault", error_text(exc)
+    except KeyboardInterrupt:
+        return _interrupted(name)
+    except Exception as exc:  # any failure of this point is reported, never raised
+        status, error = "error", error_text(exc)
+        log.debug("point %s failed", name, exc_info=True)
+    if status == "finished":
+        try:
+            import matplotlib
+
+            matplotlib.use("Agg")
+            from knotmm.analysis import analyze_run
+
+            result = analyze_run(directory, **task.get("analysis", {}))
+            analysis = result.to_dict()
+        except KeyboardInterrupt:
+            return _interrupted(name)
+        except Exception as exc:
+            status, error = "analysis_failed", error_text(exc)
+            log.debug("analysis of point %s failed", name, exc_info=True)
+    values = summary_values(analysis)
+    values["time_reached"] = time_reached(directory)
+    return {"name": name, "status": status, "error": error, "values": values}

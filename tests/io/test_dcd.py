@@ -1,0 +1,71 @@
+"""DCD layout, frame counts and truncation, measured one way (knotmm.io.dcd)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mdtraj.formats import DCDTrajectoryFile
+
+from knotmm.errors import TrajectoryFileError
+from knotmm.io.dcd import dcd_layout, read_dcd, truncate_dcd
+
+
+def _write(path, n_frames, n_atoms, cell=False):
+    xyz = np.arange(n_frames * n_atoms * 3, dtype=np.float32).reshape(n_frames, n_atoms, 3)
+    with DCDTrajectoryFile(str(path), "w") as fh:
+        if cell:
+            fh.write(xyz, cell_lengths=np.full((n_frames, 3), 50.0),
+                     cell_angles=np.full((n_frames, 3), 90.0))
+        else:
+            fh.write(xyz)
+    return xyz
+
+
+@pytest.mark.parametrize("cell", [False, True])
+def test_layout_matches_the_file_size_and_mdtraj(tmp_path, cell):
+    path = tmp_path / "t.dcd"
+    _write(path, 7, 11, cell)
+    layout = dcd_layout(path)
+    # independent: a frame is three Fortran records of n_atoms float32 (4 + 4 n + 4 bytes),
+    # plus a 56-byte unit-cell record when there is one
+    frame = 3 * (4 + 4 * 11 + 4) + (56 if cell else 0)
+    assert layout.frame_bytes == frame
+    assert layout.header_bytes + 7 * frame == path.stat().st_size
+    assert (layout.n_atoms, layout.claimed_frames, layout.complete_frames) == (11, 7, 7)
+    assert not layout.truncated
+
+
+def test_a_frame_cut_short_is_seen_and_cut_back(tmp_path):
+    path = tmp_path / "t.dcd"
+    xyz = _write(path, 6, 5)
+    path.write_bytes(path.read_bytes()[:-30])  # a writer killed inside the last frame
+    layout = dcd_layout(path)
+    assert (layout.claimed_frames, layout.complete_frames) == (6, 5) and layout.truncated
+    got, notes = read_dcd(path)
+    np.testing.assert_array_equal(got, xyz[:5])
+    assert len(notes) == 1 and "claims 6 frames but only 5" in notes[0]
+    truncate_dcd(path, 3)
+    layout = dcd_layout(path)
+    assert (layout.claimed_frames, layout.complete_frames, layout.partial_bytes) == (3, 3, 0)
+    with DCDTrajectoryFile(str(path)) as fh:  # mdtraj agrees, without a complaint
+        again, _, _ = fh.read()
+    np.testing.assert_array_equal(again, xyz[:3])
+
+
+def test_truncation_refuses_to_invent_frames(tmp_path):
+    path = tmp_path / "t.dcd"
+    _write(path, 2, 5)
+    with pytest.raises(TrajectoryFileError, match="holds 2 whole frames but the checkpoint "
+                                                  "counts 4"):
+        truncate_dcd(path, 4)
+    with pytest.raises(TrajectoryFileError, match="missing"):
+        truncate_dcd(tmp_path / "none.dcd", 1)
+
+
+@pytest.mark.parametrize("keep", [0, 5, 60, 100])
+def test_a_damaged_header_is_one_clear_error(tmp_path, keep):
+    path = tmp_path / "t.dcd"
+    _write(path, 2, 5)
+    path.write_bytes(path.read_bytes()[:keep])
+    with pytest.raises(TrajectoryFileError, match="not a DCD|cut inside its DCD header"):
+        dcd_layout(path)
