@@ -128,6 +128,10 @@ void RPYIntegrator::initialize(ContextImpl& contextRef) {
                                   " vectors given, expected one per bead (" +
                                   std::to_string(beads) + ")");
     }
+    if (thermalEnergy > 0 && !isStochastic())
+        throw OpenMMException("thermalEnergy > 0 needs euler_maruyama or ito_heun, not " + method);
+    if (isAdaptive())  // as knotmm's adaptive integrators: never start above the largest step
+        setStepSize(std::min(getStepSize(), maxStepSize));
     context = &contextRef;
     owner = &contextRef.getOwner();
     kernel = context->getPlatform().createKernel(IntegrateRPYStepKernel::Name(), contextRef);
