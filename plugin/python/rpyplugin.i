@@ -11,6 +11,7 @@
 #include "openmm/RPMDIntegrator.h"
 #include "openmm/RPMDMonteCarloBarostat.h"
 #include "knotmm/RPYIntegrator.h"
+using OpenMM::Vec3;  // OpenMM's typemaps name it unqualified
 
 extern "C" void registerRPYKernelFactories();
 
@@ -70,7 +71,7 @@ public:
     void setMaximumStepSize(double h);
     int getNumThreads() const;
     void setNumThreads(int n);
-    void setSpectralRadiusStartVector(const std::vector<OpenMM::Vec3>& v);
+    void setSpectralRadiusStartVector(const std::vector<Vec3>& v);
     virtual void step(int steps);
     void stepTo(double time);
     long long getNumForceEvaluations() const;

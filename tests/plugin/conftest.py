@@ -1,0 +1,16 @@
+"""Shared helpers of the plugin tests: skip them all cleanly when the plugin is not built."""
+
+from __future__ import annotations
+
+import pytest
+
+import knotmm.plugin as kp
+
+requires_plugin = pytest.mark.skipif(not kp.available(), reason=str(kp.load_error()))
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if "tests/plugin/" in str(item.fspath).replace("\\", "/"):
+            item.add_marker(requires_plugin)
+
