@@ -148,11 +148,6 @@ std::vector<std::string> RPYIntegrator::getKernelNames() {
     return {IntegrateRPYStepKernel::Name()};
 }
 
-void RPYIntegrator::stateChanged(State::DataType changed) {
-    if (kernelReady && (changed == State::Positions || changed == State::Parameters))
-        kernel.getAs<IntegrateRPYStepKernel>().invalidateCache();
-}
-
 void RPYIntegrator::checkInitialized() const {
     if (context == nullptr || !kernelReady)
         throw OpenMMException("RPYIntegrator: not bound to a Context yet");

@@ -75,7 +75,6 @@ protected:
     void initialize(OpenMM::ContextImpl& context) override;
     void cleanup() override;
     std::vector<std::string> getKernelNames() override;
-    void stateChanged(OpenMM::State::DataType changed) override;
     double computeKineticEnergy() override { return 0.0; }
     bool kineticEnergyRequiresForce() const override { return false; }
     void createCheckpoint(std::ostream& stream) const override;

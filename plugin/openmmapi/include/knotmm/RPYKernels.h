@@ -32,7 +32,7 @@ public:
      */
     virtual double execute(OpenMM::ContextImpl& context, RPYIntegrator& integrator,
                            double targetTime) = 0;
-    /** Positions or parameters were changed from outside: drop cached velocities. */
+    /** Drop cached velocities (the state was changed by something other than the kernel). */
     virtual void invalidateCache() = 0;
     virtual void createCheckpoint(std::ostream& stream) const = 0;
     virtual void loadCheckpoint(std::istream& stream) = 0;

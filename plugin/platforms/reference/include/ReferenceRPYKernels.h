@@ -55,6 +55,7 @@ private:
     void readPositions(OpenMM::ContextImpl& context, Vec& y) const;
     void writePositions(OpenMM::ContextImpl& context, const Vec& y, bool shift) const;
     void velocity(OpenMM::ContextImpl& context, const Vec& y, Vec& v);
+    void keepK1(OpenMM::ContextImpl& context, const Vec& at);
     double stepFixed(OpenMM::ContextImpl& context, double h);
     double stepRK23(OpenMM::ContextImpl& context, RPYIntegrator& integrator, double maxDt);
     double stepRKC2(OpenMM::ContextImpl& context, RPYIntegrator& integrator, double maxDt);
@@ -75,6 +76,8 @@ private:
     // state carried from step to step (all of it is checkpointed)
     Vec y, k1;          // positions of the step being taken; velocity at them (FSAL)
     bool haveK1 = false;
+    Vec k1Positions;    // the positions and parameters k1 belongs to: it is reused only
+    std::map<std::string, double> k1Parameters;  // while the Context still has exactly these
     double errOld = 1.0;  // rk23's PI controller memory
     double rho = 0.0, rkcErrOld = 0.0, rkcHOld = 0.0;
     bool haveRho = false, haveEig = false, haveRkcErrOld = false, haveRkcHOld = false;

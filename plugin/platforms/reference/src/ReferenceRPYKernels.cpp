@@ -118,7 +118,7 @@ std::string fmt(double x) {
     return s.str();
 }
 
-const int KERNEL_CHECKPOINT_VERSION = 1;
+const int KERNEL_CHECKPOINT_VERSION = 2;
 
 } // namespace
 
@@ -246,8 +246,19 @@ void ReferenceIntegrateRPYStepKernel::noiseIncrement(const Vec& yy, double h, Ve
 // ---------------------------------------------------------------------------------------------
 // one accepted step
 
+void ReferenceIntegrateRPYStepKernel::keepK1(ContextImpl& context, const Vec& at) {
+    haveK1 = true;
+    k1Positions = at;
+    k1Parameters = context.getParameters();
+}
+
 double ReferenceIntegrateRPYStepKernel::execute(ContextImpl& context, RPYIntegrator& integrator, double targetTime) {
     readPositions(context, y);
+    // The cached velocity is valid while positions and parameters are exactly those it was
+    // computed at. (Checking them here, rather than trusting stateChanged(), keeps it across
+    // Context.loadCheckpoint, which restores both and then reports them as changed.)
+    if (haveK1 && (y != k1Positions || context.getParameters() != k1Parameters))
+        invalidateCache();
     const double t0 = context.getTime();
     const double maxDt = std::isfinite(targetTime) ? targetTime - t0 : std::numeric_limits<double>::infinity();
     double h;
@@ -322,7 +333,7 @@ double ReferenceIntegrateRPYStepKernel::stepRK23(ContextImpl& context, RPYIntegr
     const double tol = integrator.getErrorTolerance();
     if (!haveK1) {
         velocity(context, y, k1);
-        haveK1 = true;
+        keepK1(context, y);
     }
     while (true) {
         const double hTry = integrator.getStepSize();
@@ -347,6 +358,7 @@ double ReferenceIntegrateRPYStepKernel::stepRK23(ContextImpl& context, RPYIntegr
                 integrator.setStepSize(std::min(integrator.getMaximumStepSize(), h * fac));
             errOld = std::max(e, 1e-4);
             k1.swap(k4);
+            keepK1(context, y1);
             return h;
         }
         nRejected++;
@@ -457,7 +469,7 @@ double ReferenceIntegrateRPYStepKernel::stepRKC2(ContextImpl& context, RPYIntegr
     const double tol = integrator.getErrorTolerance();
     if (!haveK1) {
         velocity(context, y, k1);
-        haveK1 = true;
+        keepK1(context, y);
     }
     const Vec& f0 = k1;
     if (!haveRho || stepsSinceRho >= rhoInterval) {
@@ -514,6 +526,7 @@ double ReferenceIntegrateRPYStepKernel::stepRKC2(ContextImpl& context, RPYIntegr
             }
             lastStages = s;
             k1.swap(k4);
+            keepK1(context, y1);
             stepsSinceRho++;
             return h;
         }
@@ -544,6 +557,13 @@ void ReferenceIntegrateRPYStepKernel::createCheckpoint(std::ostream& stream) con
     put(stream, errOld);
     put(stream, haveK1);
     putVec(stream, haveK1 ? k1 : Vec());
+    putVec(stream, haveK1 ? k1Positions : Vec());
+    put(stream, (long long) k1Parameters.size());
+    for (const auto& p : k1Parameters) {
+        put(stream, (long long) p.first.size());
+        stream.write(p.first.data(), p.first.size());
+        put(stream, p.second);
+    }
     put(stream, haveRho);
     put(stream, rho);
     put(stream, haveEig);
@@ -574,6 +594,17 @@ void ReferenceIntegrateRPYStepKernel::loadCheckpoint(std::istream& stream) {
     getVec(stream, tmp);
     if (haveK1)
         k1 = tmp;
+    getVec(stream, k1Positions);
+    long long numParameters = 0;
+    get(stream, numParameters);
+    k1Parameters.clear();
+    for (long long i = 0; i < numParameters; i++) {
+        long long length = 0;
+        get(stream, length);
+        std::string name(length, ' ');
+        stream.read(&name[0], length);
+        get(stream, k1Parameters[name]);
+    }
     get(stream, haveRho);
     get(stream, rho);
     get(stream, haveEig);
