@@ -8,20 +8,25 @@ using namespace KnotMM;
 
 namespace {
 
-// Coefficients (a, b) of mu_ij / mu0 = a I + b rvec rvec^T (rvec unnormalised), without an
-// early exit so the pair loop vectorises; r = 0 (the bead itself) gives the limit mu = I.
-inline void pairCoefficients(double r, double d, double& a, double& b) {
-    const double inv = 1.0 / std::max(r, 1e-300);
-    const double inv2 = inv * inv;
-    const double d2 = d * d;
-    const double aFar = 0.375 * d * inv * (1.0 + d2 * inv2 / 6.0);
-    const double bFar = 0.375 * d * inv * (1.0 - 0.5 * d2 * inv2) * inv2;
-    const double aNear = 1.0 - 0.5625 * r / d;
-    const double bNear = 0.1875 * inv / d;
-    a = r >= d ? aFar : aNear;
-    b = r >= d ? bFar : bNear;
-    a = r == 0.0 ? 1.0 : a;
-    b = r == 0.0 ? 0.0 : b;
+// Coefficients (a, b) of mu_ij / mu0 = a I + b rvec rvec^T (rvec unnormalised) from r^2, with
+// one square root and one division and no branch (so the pair loop vectorises); r = 0 (the
+// bead itself) gives the limit mu = I. invD = 1/d.
+struct Coefficients {
+    double a, b;
+};
+
+inline Coefficients pairCoefficients(double r2, double d, double invD) {
+    const double inv = 1.0 / std::sqrt(r2 > 1e-300 ? r2 : 1e-300);
+    const double r = r2 * inv;
+    const double s = d * inv;  // d / r
+    const double s2 = s * s;
+    const double aFar = 0.375 * s * (1.0 + s2 / 6.0);
+    const double bFar = 0.375 * s * (1.0 - 0.5 * s2) * (inv * inv);
+    const double aNear = 1.0 - 0.5625 * r * invD;
+    const double bNear = 0.1875 * inv * invD;
+    const double a = r >= d ? aFar : aNear;
+    const double b = r >= d ? bFar : bNear;
+    return {r2 == 0.0 ? 1.0 : a, r2 == 0.0 ? 0.0 : b};
 }
 
 } // namespace
@@ -29,6 +34,12 @@ inline void pairCoefficients(double r, double d, double& a, double& b) {
 RPYMobility::RPYMobility(double diameter, double mu0, int numThreads)
     : d(diameter), mu0(mu0), numThreads(std::max(1, numThreads)) {}
 
+// The pair loop is compiled twice, for AVX2+FMA (x86-64-v3) and for the baseline, and the
+// loader picks the one the processor runs (GCC function multiversioning), so a build runs on
+// any x86-64 machine and is fast on current ones.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+__attribute__((target_clones("arch=x86-64-v3", "default")))
+#endif
 void RPYMobility::rows(int n, const double* x, const double* f, double* v, int begin, int end) const {
     const double* xs = x;
     const double* ys = x + n;
@@ -36,6 +47,7 @@ void RPYMobility::rows(int n, const double* x, const double* f, double* v, int b
     const double* fx = f;
     const double* fy = f + n;
     const double* fz = f + 2 * n;
+    const double invD = 1.0 / d;
     for (int i = begin; i < end; i++) {
         const double xi = xs[i], yi = ys[i], zi = zs[i];
         double ax = 0.0, ay = 0.0, az = 0.0;
@@ -46,12 +58,11 @@ void RPYMobility::rows(int n, const double* x, const double* f, double* v, int b
             const double r0 = xs[j] - xi;
             const double r1 = ys[j] - yi;
             const double r2 = zs[j] - zi;
-            double a, b;
-            pairCoefficients(std::sqrt(r0 * r0 + r1 * r1 + r2 * r2), d, a, b);
-            const double rf = b * (r0 * fx[j] + r1 * fy[j] + r2 * fz[j]);
-            ax += a * fx[j] + rf * r0;
-            ay += a * fy[j] + rf * r1;
-            az += a * fz[j] + rf * r2;
+            const Coefficients c = pairCoefficients(r0 * r0 + r1 * r1 + r2 * r2, d, invD);
+            const double rf = c.b * (r0 * fx[j] + r1 * fy[j] + r2 * fz[j]);
+            ax += c.a * fx[j] + rf * r0;
+            ay += c.a * fy[j] + rf * r1;
+            az += c.a * fz[j] + rf * r2;
         }
         v[i] = mu0 * ax;
         v[n + i] = mu0 * ay;
@@ -84,8 +95,8 @@ void RPYMobility::matrix(int n, const double* x, std::vector<double>& m) const {
             m[(size_t) (3 * i + k) * dim + 3 * i + k] = mu0;
         for (int j = i + 1; j < n; j++) {
             const double rv[3] = {x[j] - x[i], x[n + j] - x[n + i], x[2 * n + j] - x[2 * n + i]};
-            double a, b;
-            pairCoefficients(std::sqrt(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2]), d, a, b);
+            const Coefficients c = pairCoefficients(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2], d, 1.0 / d);
+            const double a = c.a, b = c.b;
             for (int k = 0; k < 3; k++)
                 for (int l = 0; l < 3; l++) {
                     const double val = mu0 * (b * rv[k] * rv[l] + (k == l ? a : 0.0));
