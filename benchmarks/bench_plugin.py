@@ -6,7 +6,12 @@ For each N (a T(2,3) template) on the CPU platform (one thread), times
   API, then the numba RPY loop of :mod:`knotmm.mobility`), per call;
 * ``plugin``  : ``RPYIntegrator("euler").step(k)`` divided by ``k``: one Euler step is one
   evaluation (forces asked for in C++, the C++ RPY loop) plus the position update;
-* ``plugin2`` : the same with the plugin's pair loop on two threads (from N = 256 up).
+* ``plugin2`` : the same with the plugin's pair loop on two threads (from N = 256 up);
+
+and, with ``--run`` (default 5 tau_d), the wall time of a whole rk23 run from the template
+(tolerance 1e-4): ``knotmm.simulation.Simulation.run`` against ``RPYIntegrator.stepTo``, which
+adds the Python engine's per-stage numpy work to the comparison (one run each, after the
+evaluation timings).
 
 Each figure is the median over ``--repeats`` repeats; within a repeat the engines and sizes
 are interleaved, so slow phases of a shared machine hit all of them alike. The ratio
@@ -36,13 +41,13 @@ def _python_engine(x):
     return lambda: sim.velocity(sim.positions)
 
 
-def _plugin(x, threads):
+def _plugin(x, threads, method="euler"):
     import openmm
 
     from knotmm.plugin import RPYIntegrator
     from knotmm.system import build_system
 
-    integ = RPYIntegrator(1e-5, "euler", threads=threads)
+    integ = RPYIntegrator(1e-5, method, threads=threads)
     ctx = openmm.Context(build_system(x), integ, openmm.Platform.getPlatformByName("CPU"),
                          {"Threads": "1"})
     ctx.setPositions(x)
@@ -69,6 +74,8 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--budget", type=float, default=0.15,
                         help="seconds per timing (sets the number of calls)")
+    parser.add_argument("--run", type=float, default=5.0,
+                        help="tau_d of the whole-run comparison (0: skip it)")
     args = parser.parse_args(argv)
 
     from knotmm.plugin import available, load_error
@@ -109,7 +116,29 @@ def main(argv=None):
         else:
             extra = f"{'-':>13} {py / pl:14.2f} {'-':>15}"
         print(f"{n:6d} {py:12.4f} {pl:12.4f} {extra}")
+    if args.run > 0:
+        print(f"\nwhole rk23 run of {args.run:g} tau_d (wall s; evaluations):")
+        for n in args.beads:
+            py_s, py_ev, pl_s, pl_ev = _whole_run(torus_knot(2, 3, n), args.run)
+            print(f"{n:6d} python {py_s:8.3f} s ({py_ev} ev)   plugin {pl_s:8.3f} s ({pl_ev} ev)"
+                  f"   ratio {py_s / pl_s:6.2f}")
     return samples
+
+
+def _whole_run(x, duration):
+    from knotmm.integrators import RK23
+    from knotmm.simulation import Simulation
+
+    sim = Simulation(x, integrator=RK23(0.01), platform="CPU", threads=1)
+    t0 = time.perf_counter()
+    sim.run(duration)
+    py_s = time.perf_counter() - t0
+    integ = _plugin(x, 1, "rk23")
+    integ.setStepSize(0.01)
+    t0 = time.perf_counter()
+    integ.stepTo(duration)
+    pl_s = time.perf_counter() - t0
+    return py_s, sim.n_evaluations, pl_s, integ.getNumForceEvaluations()
 
 
 if __name__ == "__main__":

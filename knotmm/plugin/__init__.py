@@ -35,7 +35,8 @@ from __future__ import annotations
 
 import logging
 
-import openmm  # noqa: F401 - loads libOpenMM.so and OpenMM's platforms before the plugin
+import openmm  # loads libOpenMM.so and OpenMM's platforms before the plugin library
+import openmm.version
 
 __all__ = ["RPYIntegrator", "PluginUnavailableError", "available", "load_error", "METHODS"]
 
@@ -68,6 +69,17 @@ except ImportError as exc:  # not built, or libOpenMM.so / ABI mismatch
     )
     log.debug(_load_error)
 else:
+    _built = _rpy.builtAgainstOpenMMVersion()
+    _running = openmm.version.version
+    if _built.split(".")[:2] != _running.split(".")[:2]:
+        # C++ classes (Integrator, ContextImpl) may differ in layout: do not touch them
+        _load_error = (
+            f"knotmm.plugin: compiled against OpenMM {_built} but OpenMM {_running} is "
+            f"installed; rebuild knotmm (pip install --force-reinstall --no-deps knotmm, or "
+            f"pip install -e . --no-build-isolation in a checkout)"
+        )
+        _rpy = None
+if _rpy is not None:
     try:
         _rpy.registerRPYKernelFactories()
     except Exception as exc:  # noqa: BLE001 - any failure means: not usable

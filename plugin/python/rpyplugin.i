@@ -15,6 +15,10 @@ using OpenMM::Vec3;  // OpenMM's typemaps name it unqualified
 
 extern "C" void registerRPYKernelFactories();
 
+// The OpenMM version this module was compiled against (libOpenMM's C++ ABI is not stable
+// across minor versions).
+static const char* builtAgainstOpenMMVersion() { return KNOTMM_OPENMM_BUILD_VERSION; }
+
 // OpenMM's typemaps accept numpy arrays; they ask this first.
 static bool isNumpyAvailable() { return true; }
 %}
@@ -44,8 +48,8 @@ static bool isNumpyAvailable() { return true; }
 
 %feature("autodoc", "0");
 
-%rename(registerRPYKernelFactories) registerRPYKernelFactories;
 extern "C" void registerRPYKernelFactories();
+static const char* builtAgainstOpenMMVersion();
 
 namespace KnotMM {
 
