@@ -90,3 +90,12 @@ def test_cpu_platform_follows_reference(method):
     diff = np.abs(out["CPU"] - out["Reference"]).max()
     assert diff < 1e-5, diff
     assert np.abs(out["Reference"] - chain).max() > 1.0
+
+
+def test_default_platform_is_one_with_the_kernel(chain):
+    """Without a platform OpenMM picks the fastest one that has the plugin's kernel."""
+    sim = app.Simulation(build_topology(len(chain)), build_system(chain), RPYIntegrator(0.01))
+    assert sim.context.getPlatform().getName() in ("CPU", "Reference")
+    sim.context.setPositions(chain)
+    sim.step(3)
+    assert sim.currentStep == 3
