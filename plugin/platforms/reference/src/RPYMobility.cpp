@@ -38,8 +38,12 @@ RPYMobility::RPYMobility(double diameter, double mu0, int numThreads)
 // loader picks the one the processor runs (GCC function multiversioning), so a build runs on
 // any x86-64 machine and is fast on current ones.
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-__attribute__((target_clones("arch=x86-64-v3", "default")))
+#define KNOTMM_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define KNOTMM_CLONES
 #endif
+
+KNOTMM_CLONES
 void RPYMobility::rows(int n, const double* x, const double* f, double* v, int begin, int end) const {
     const double* xs = x;
     const double* ys = x + n;
@@ -107,6 +111,7 @@ void RPYMobility::matrix(int n, const double* x, std::vector<double>& m) const {
     }
 }
 
+KNOTMM_CLONES
 bool KnotMM::choleskyLower(std::vector<double>& a, int n) {
     // Row-oriented Cholesky-Crout: L[i][j] = (A[i][j] - sum_k<j L[i][k] L[j][k]) / L[j][j];
     // the inner sums are contiguous dot products. The upper triangle is zeroed.
