@@ -25,8 +25,11 @@ public:
 // registerKernelFactories() at start-up: the Python module calls this at import instead.
 // The CPU platform derives from the Reference platform (same PlatformData), so the Reference
 // kernel serves both. Registering twice is harmless: a platform that already has the kernel
-// is skipped.
+// is skipped. The XmlSerializer proxy of RPYIntegrator is registered here too.
+extern "C" void registerRPYSerializationProxies();
+
 extern "C" void registerRPYKernelFactories() {
+    registerRPYSerializationProxies();
     for (const char* name : {"Reference", "CPU"}) {
         for (int i = 0; i < Platform::getNumPlatforms(); i++) {
             Platform& platform = Platform::getPlatform(i);
