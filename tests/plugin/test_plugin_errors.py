@@ -55,3 +55,12 @@ def test_quantities_are_accepted(chain):
     integ.stepTo(0.25 * unit.picosecond)
     assert ctx.getState().getTime() == 0.25 * unit.picosecond
     assert integ.getErrorTolerance() == 1e-4
+
+
+def test_periodic_system_is_refused(chain):
+    system = build_system(chain)
+    system.setDefaultPeriodicBoxVectors(*(np.eye(3) * 50.0))
+    steric = next(f for f in system.getForces() if isinstance(f, openmm.NonbondedForce))
+    steric.setNonbondedMethod(openmm.NonbondedForce.CutoffPeriodic)
+    with pytest.raises(openmm.OpenMMException, match="periodic"):
+        plugin_context(system, chain, RPYIntegrator(0.01))

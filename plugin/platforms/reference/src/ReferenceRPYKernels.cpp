@@ -145,10 +145,15 @@ void ReferenceIntegrateRPYStepKernel::initialize(const System& system, const RPY
         else
             beadParticle.push_back(i);
     }
+    if (system.usesPeriodicBoundaryConditions())
+        throw OpenMMException("RPYIntegrator: the System is periodic, but the RPY mobility here is "
+                              "the free-space one (no periodic images); use non-periodic forces");
     if (system.getNumConstraints() > 0)
         throw OpenMMException("RPYIntegrator: the System has constraints, which overdamped RPY "
                               "dynamics does not support; use stiff bonds instead");
     n = beadParticle.size();
+    if (n == 0)
+        throw OpenMMException("RPYIntegrator: the System has no particles to move");
     kT = integrator.getThermalEnergy();
     mobility = RPYMobility(integrator.getBeadDiameter(), integrator.getMobility(), integrator.getNumThreads());
     int seed = integrator.getRandomNumberSeed();
