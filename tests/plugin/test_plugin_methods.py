@@ -81,7 +81,7 @@ def test_rkc2_matches_python_engine(chain):
     # the power iteration starts from the same vector in both engines
     start = np.random.default_rng(3).standard_normal(chain.shape)
     py = RKC2(0.01)
-    py._eig = start.copy()
+    py.set_state({**py.get_state(), "eigenvector": start.tolist()})
     sim = python_run(chain, py, [0.5, 1.0])
     integ = RPYIntegrator(0.01, "rkc2")
     integ.setSpectralRadiusStartVector(start)
