@@ -1,7 +1,12 @@
 #ifndef KNOTMM_RPY_MOBILITY_H_
 #define KNOTMM_RPY_MOBILITY_H_
 
+#include <memory>
 #include <vector>
+
+namespace OpenMM {
+class ThreadPool;
+}
 
 namespace KnotMM {
 
@@ -15,6 +20,9 @@ namespace KnotMM {
 class RPYMobility {
 public:
     RPYMobility(double diameter, double mu0, int numThreads);
+    ~RPYMobility();
+    RPYMobility(RPYMobility&&) noexcept;
+    RPYMobility& operator=(RPYMobility&&) noexcept;
     /** v = mu(x) f, matrix-free, O(n^2). All arrays SoA of length 3n. */
     void velocities(int n, const double* x, const double* f, double* v) const;
     /** Dense 3n x 3n mobility, bead-major (x0, y0, z0, x1, ...), row-major storage. */
@@ -23,6 +31,7 @@ private:
     void rows(int n, const double* x, const double* f, double* v, int begin, int end) const;
     double d, mu0;
     int numThreads;
+    std::unique_ptr<OpenMM::ThreadPool> pool;  // OpenMM's persistent workers, when numThreads > 1
 };
 
 /** In-place lower Cholesky factor of an SPD matrix (row-major n x n); false if not SPD. */

@@ -1,8 +1,9 @@
 #include "RPYMobility.h"
 
+#include "openmm/internal/ThreadPool.h"
+
 #include <algorithm>
 #include <cmath>
-#include <thread>
 
 using namespace KnotMM;
 
@@ -32,7 +33,14 @@ inline Coefficients pairCoefficients(double r2, double d, double invD) {
 } // namespace
 
 RPYMobility::RPYMobility(double diameter, double mu0, int numThreads)
-    : d(diameter), mu0(mu0), numThreads(std::max(1, numThreads)) {}
+    : d(diameter), mu0(mu0), numThreads(std::max(1, numThreads)) {
+    if (this->numThreads > 1)
+        pool.reset(new OpenMM::ThreadPool(this->numThreads));
+}
+
+RPYMobility::~RPYMobility() = default;
+RPYMobility::RPYMobility(RPYMobility&&) noexcept = default;
+RPYMobility& RPYMobility::operator=(RPYMobility&&) noexcept = default;
 
 // The pair loop is compiled twice, for AVX2+FMA (x86-64-v3) and for the baseline, and the
 // loader picks the one the processor runs (GCC function multiversioning), so a build runs on
@@ -75,20 +83,20 @@ void RPYMobility::rows(int n, const double* x, const double* f, double* v, int b
 }
 
 void RPYMobility::velocities(int n, const double* x, const double* f, double* v) const {
-    // Below a few hundred beads thread start-up costs more than the loop saves.
-    int threads = std::min(numThreads, std::max(1, n / 128));
-    if (threads <= 1) {
+    // Below a few hundred beads waking the workers costs more than the loop saves.
+    const int threads = std::min(numThreads, std::max(1, n / 128));
+    if (threads <= 1 || !pool) {
         rows(n, x, f, v, 0, n);
         return;
     }
-    std::vector<std::thread> pool;
-    // Row i costs the same for every i: equal blocks.
-    for (int t = 1; t < threads; t++)
-        pool.emplace_back([=] { rows(n, x, f, v, (int) ((long long) n * t / threads),
-                                     (int) ((long long) n * (t + 1) / threads)); });
-    rows(n, x, f, v, 0, n / threads);
-    for (auto& th : pool)
-        th.join();
+    // Row i costs the same for every i: equal blocks, one per worker (rows are independent,
+    // so the result does not depend on the number of threads).
+    pool->execute([&](OpenMM::ThreadPool&, int index) {
+        if (index < threads)
+            rows(n, x, f, v, (int) ((long long) n * index / threads),
+                 (int) ((long long) n * (index + 1) / threads));
+    });
+    pool->waitForThreads();
 }
 
 void RPYMobility::matrix(int n, const double* x, std::vector<double>& m) const {
