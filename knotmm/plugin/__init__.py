@@ -33,6 +33,7 @@ why not, so callers can fall back to the Python engine.
 
 from __future__ import annotations
 
+import importlib
 import logging
 
 import openmm  # loads libOpenMM.so and OpenMM's platforms before the plugin library
@@ -60,7 +61,7 @@ class PluginUnavailableError(ImportError):
 
 _load_error: str | None = None
 try:
-    from knotmm.plugin import rpyplugin as _rpy
+    _rpy = importlib.import_module(".rpyplugin", __name__)
 except ImportError as exc:  # not built, or libOpenMM.so / ABI mismatch
     _rpy = None
     _load_error = (
