@@ -39,7 +39,14 @@ import logging
 import openmm  # loads libOpenMM.so and OpenMM's platforms before the plugin library
 import openmm.version
 
-__all__ = ["RPYIntegrator", "PluginUnavailableError", "available", "load_error", "METHODS"]
+__all__ = [
+    "RPYIntegrator",
+    "PluginUnavailableError",
+    "available",
+    "load_error",
+    "from_python_integrator",
+    "METHODS",
+]
 
 log = logging.getLogger(__name__)
 
@@ -180,3 +187,51 @@ else:
         def __init__(self, *args, **kwargs):
             raise PluginUnavailableError(_load_error)
 
+
+
+def from_python_integrator(integrator, threads: int = 1) -> RPYIntegrator:
+    """The plugin integrator equivalent to one of knotmm's Python integrators.
+
+    Reads the attributes the Python integrators have (``name``, ``timestep``; adaptive:
+    ``tolerance``, ``max_timestep``, ``min_timestep``; Brownian: ``kT``, ``seed``), so it
+    does not depend on where those classes live.
+
+    Parameters
+    ----------
+    integrator : knotmm.integrators.Integrator or knotmm.brownian.StochasticIntegrator
+    threads : int
+        Threads of the plugin's pair loop.
+
+    Returns
+    -------
+    RPYIntegrator
+        Same method, step (in tau_d = ps), tolerance (in d = nm) and step bounds; for a
+        Brownian integrator the same ``kT`` (F0 d = kJ/mol). Deterministic methods then take
+        the same steps as the Python engine; the noise stream is the plugin's own (same
+        statistics, other numbers), seeded from ``seed`` (``None``: fresh entropy).
+
+    Raises
+    ------
+    ValueError
+        If the integrator's method has no plugin counterpart.
+    PluginUnavailableError
+        If the plugin is not available.
+    """
+    name = getattr(integrator, "name", None)
+    if name not in METHODS:
+        raise ValueError(
+            f"integrator={integrator!r}: method {name!r} has no plugin counterpart "
+            f"(expected one of {', '.join(METHODS)})"
+        )
+    kwargs = {"threads": threads}
+    tolerance = 1e-4
+    if METHODS[name][1]:
+        tolerance = float(integrator.tolerance)
+        kwargs.update(max_step=float(integrator.max_timestep),
+                      min_step=float(integrator.min_timestep))
+    if METHODS[name][2]:
+        seed = getattr(integrator, "seed", None)
+        # the plugin takes a nonzero 31-bit seed (0 means fresh entropy, as in OpenMM)
+        kwargs.update(kT=float(getattr(integrator, "kT", 0.0)),
+                      seed=0 if seed is None else int(seed) % 2147483646 + 1)
+    return RPYIntegrator(float(integrator.timestep), name, tolerance, **kwargs)

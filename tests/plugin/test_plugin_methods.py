@@ -156,3 +156,23 @@ def test_virtual_sites_match_python_engine(chain):
     np.testing.assert_allclose(pos[:40], sim.positions, rtol=0, atol=1e-10)
     # the sites sit at the bond midpoints of the new positions
     np.testing.assert_allclose(pos[40:], site_positions(pos[:40], model)[40:], atol=1e-12)
+
+
+def test_from_python_integrator(chain):
+    """The converted integrator takes the Python engine's steps (rk23 with its settings)."""
+    from knotmm.brownian import ItoHeun
+    from knotmm.plugin import from_python_integrator
+
+    py = RK23(0.02, tolerance=1e-5, max_timestep=0.04, min_timestep=1e-6)
+    integ = from_python_integrator(py)
+    assert (integ.getMethod(), integ.getErrorTolerance(), integ.getMaximumStepSize(),
+            integ.getMinimumStepSize()) == ("rk23", 1e-5, 0.04, 1e-6)
+    sim = python_run(chain, py, [0.5])
+    ctx = plugin_context(build_system(chain), chain, integ)
+    integ.stepTo(0.5)
+    np.testing.assert_allclose(positions_of(ctx), sim.positions, rtol=0, atol=1e-10)
+
+    brownian = from_python_integrator(ItoHeun(0.002, peclet=4.0, seed=3))
+    assert brownian.getMethod() == "ito_heun"
+    assert brownian.getThermalEnergy() == 0.25
+    assert brownian.getRandomNumberSeed() == 4
