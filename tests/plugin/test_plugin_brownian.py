@@ -95,3 +95,17 @@ def test_dimer_bond_length_is_boltzmann(method):
     # below 0.5 % of the variance of r, a few 1e-4 in <r^2>.
     assert abs(mean - m1) < 4.5 * se1 + 1e-3, (mean, m1, se1)
     assert abs(msq - m2) < 4.5 * se2 + 2e-3, (msq, m2, se2)
+
+
+def test_kT_can_change_between_steps():
+    """setThermalEnergy on a bound integrator acts from the next step (e.g. annealing)."""
+    system = openmm.System()
+    system.addParticle(1.0)
+    integ = RPYIntegrator(0.01, "euler_maruyama", kT=1.0, seed=3)
+    ctx = plugin_context(system, np.zeros((1, 3)), integ)
+    integ.step(5)
+    assert np.abs(positions_of(ctx)).max() > 0
+    integ.setThermalEnergy(0.0)  # no noise and no force: the bead stays
+    before = positions_of(ctx)
+    integ.step(5)
+    np.testing.assert_array_equal(positions_of(ctx), before)

@@ -69,6 +69,7 @@ private:
     std::vector<int> beadParticle;  // bead -> particle index (virtual sites are not beads)
     bool hasVirtualSites = false;
     double kT = 0.0;
+    int numThreads = 1;
     RPYMobility mobility;
     NoiseStream noise;
     std::vector<OpenMM::Vec3> rkcStart;

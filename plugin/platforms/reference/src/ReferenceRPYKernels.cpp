@@ -155,7 +155,8 @@ void ReferenceIntegrateRPYStepKernel::initialize(const System& system, const RPY
     if (n == 0)
         throw OpenMMException("RPYIntegrator: the System has no particles to move");
     kT = integrator.getThermalEnergy();
-    mobility = RPYMobility(integrator.getBeadDiameter(), integrator.getMobility(), integrator.getNumThreads());
+    numThreads = integrator.getNumThreads();
+    mobility = RPYMobility(integrator.getBeadDiameter(), integrator.getMobility(), numThreads);
     int seed = integrator.getRandomNumberSeed();
     noise.seed(seed != 0 ? (uint64_t) (uint32_t) seed : (uint64_t) std::random_device()() << 32 ^ std::random_device()());
     rkcStart = integrator.getSpectralRadiusStartVector();
@@ -258,6 +259,12 @@ void ReferenceIntegrateRPYStepKernel::keepK1(ContextImpl& context, const Vec& at
 }
 
 double ReferenceIntegrateRPYStepKernel::execute(ContextImpl& context, RPYIntegrator& integrator, double targetTime) {
+    // settings that may change between steps
+    kT = integrator.getThermalEnergy();
+    if (integrator.getNumThreads() != numThreads) {
+        numThreads = integrator.getNumThreads();
+        mobility = RPYMobility(integrator.getBeadDiameter(), integrator.getMobility(), numThreads);
+    }
     readPositions(context, y);
     // The cached velocity is valid while positions and parameters are exactly those it was
     // computed at. (Checking them here, rather than trusting stateChanged(), keeps it across
