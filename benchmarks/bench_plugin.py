@@ -55,17 +55,20 @@ def _plugin(x, threads, method="euler"):
     return integ
 
 
+_CLOCK = time.perf_counter
+
+
 def _time_calls(fn, calls):
-    t0 = time.perf_counter()
+    t0 = _CLOCK()
     for _ in range(calls):
         fn()
-    return (time.perf_counter() - t0) / calls
+    return (_CLOCK() - t0) / calls
 
 
 def _time_steps(integ, steps):
-    t0 = time.perf_counter()
+    t0 = _CLOCK()
     integ.step(steps)
-    return (time.perf_counter() - t0) / steps
+    return (_CLOCK() - t0) / steps
 
 
 def main(argv=None):
@@ -74,9 +77,14 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--budget", type=float, default=0.15,
                         help="seconds per timing (sets the number of calls)")
+    parser.add_argument("--clock", choices=["wall", "cpu"], default="wall",
+                        help="wall: elapsed time; cpu: this process's CPU time (steadier on a "
+                             "shared machine; meaningless for the two-thread column)")
     parser.add_argument("--run", type=float, default=5.0,
                         help="tau_d of the whole-run comparison (0: skip it)")
     args = parser.parse_args(argv)
+    global _CLOCK
+    _CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
 
     from knotmm.plugin import available, load_error
     from knotmm.templates import torus_knot
@@ -104,7 +112,8 @@ def main(argv=None):
                 samples[n, name].append(t)
 
     print(f"# cores: {os.cpu_count()}, load average: {os.getloadavg()[0]:.2f}; "
-          f"medians of {args.repeats} interleaved repeats; CPU platform, 1 OpenMM thread")
+          f"medians of {args.repeats} interleaved repeats; {args.clock} clock; CPU platform, "
+          f"1 OpenMM thread")
     print(f"{'N':>6} {'python [ms]':>12} {'plugin [ms]':>12} {'plugin 2 thr':>13} "
           f"{'python/plugin':>14} {'python/plugin2':>15}")
     for n in args.beads:
@@ -117,7 +126,7 @@ def main(argv=None):
             extra = f"{'-':>13} {py / pl:14.2f} {'-':>15}"
         print(f"{n:6d} {py:12.4f} {pl:12.4f} {extra}")
     if args.run > 0:
-        print(f"\nwhole rk23 run of {args.run:g} tau_d (wall s; evaluations):")
+        print(f"\nwhole rk23 run of {args.run:g} tau_d ({args.clock} s; evaluations):")
         for n in args.beads:
             py_s, py_ev, pl_s, pl_ev = _whole_run(torus_knot(2, 3, n), args.run)
             print(f"{n:6d} python {py_s:8.3f} s ({py_ev} ev)   plugin {pl_s:8.3f} s ({pl_ev} ev)"
@@ -130,14 +139,14 @@ def _whole_run(x, duration):
     from knotmm.simulation import Simulation
 
     sim = Simulation(x, integrator=RK23(0.01), platform="CPU", threads=1)
-    t0 = time.perf_counter()
+    t0 = _CLOCK()
     sim.run(duration)
-    py_s = time.perf_counter() - t0
+    py_s = _CLOCK() - t0
     integ = _plugin(x, 1, "rk23")
     integ.setStepSize(0.01)
-    t0 = time.perf_counter()
+    t0 = _CLOCK()
     integ.stepTo(duration)
-    pl_s = time.perf_counter() - t0
+    pl_s = _CLOCK() - t0
     return py_s, sim.n_evaluations, pl_s, integ.getNumForceEvaluations()
 
 
