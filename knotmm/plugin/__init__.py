@@ -1,0 +1,237 @@
+"""Compiled RPY integrator: overdamped RPY dynamics inside OpenMM, as a C++ plugin.
+
+:class:`RPYIntegrator` is an ``openmm.Integrator``: give it to ``openmm.Context`` or
+``openmm.app.Simulation`` like any OpenMM integrator. Inside a step the plugin asks the Context
+for forces in C++, applies the overlap-corrected Rotne-Prager-Yamakawa mobility
+(:mod:`knotmm.mobility`'s formulas) and moves the beads, so a step never returns to Python.
+The methods are those of :mod:`knotmm.integrators` and :mod:`knotmm.brownian`, formula for
+formula (the tests in ``tests/plugin`` hold the plugin to them):
+
+================== ===== ========= ==========================================================
+method             order adaptive  update
+================== ===== ========= ==========================================================
+``euler``          1     no        ``y1 = y0 + h v(y0)``
+``heun``           2     no        ``y1 = y0 + h/2 (v(y0) + v(y0 + h v(y0)))``
+``midpoint``       2     no        ``y1 = y0 + h v(y0 + h/2 v(y0))``
+``rk23``           3(2)  yes       Bogacki-Shampine, FSAL, PI step control (the default)
+``rkc2``           2     yes       damped Runge-Kutta-Chebyshev, s stages from a power iteration
+``euler_maruyama`` 1     no        ``y1 = y0 + h v(y0) + sqrt(2 kT h) B xi``, ``B B^T = mu``
+``ito_heun``       1     no        Heun drift with the same Ito noise ``sqrt(2 kT h) B(y0) xi``
+================== ===== ========= ==========================================================
+
+``v = mu F`` with ``mu`` the 3N x 3N RPY mobility (bead diameter ``d``, single-bead mobility
+``mu0``). OpenMM's units are read as knotmm's model units: 1 nm = 1 d, 1 kJ/mol = 1 F0 d,
+1 ps = 1 tau_d. Forces are computed with the chain shifted to its centre of mass (as
+:class:`knotmm.simulation.Simulation` does); the Context keeps the true positions. Virtual
+sites (``ChainModel.segment_repulsion``) are not beads: OpenMM places them and hands their
+forces to the beads.
+
+The compiled module may be missing (a source checkout that was never built): importing this
+package never fails; :func:`available` says whether the plugin loaded and :func:`load_error`
+why not, so callers can fall back to the Python engine.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+
+import openmm  # loads libOpenMM.so and OpenMM's platforms before the plugin library
+import openmm.version
+
+__all__ = [
+    "RPYIntegrator",
+    "PluginUnavailableError",
+    "available",
+    "load_error",
+    "from_python_integrator",
+    "METHODS",
+]
+
+log = logging.getLogger(__name__)
+
+#: Method name -> (order, adaptive, stochastic).
+METHODS = {
+    "euler": (1, False, False),
+    "heun": (2, False, False),
+    "midpoint": (2, False, False),
+    "rk23": (3, True, False),
+    "rkc2": (2, True, False),
+    "euler_maruyama": (1, False, True),
+    "ito_heun": (1, False, True),
+}
+
+
+class PluginUnavailableError(ImportError):
+    """The compiled plugin is not built or could not be loaded (see :func:`load_error`)."""
+
+
+_load_error: str | None = None
+try:
+    _rpy = importlib.import_module(".rpyplugin", __name__)
+except ImportError as exc:  # not built, or libOpenMM.so / ABI mismatch
+    _rpy = None
+    _load_error = (
+        f"knotmm.plugin: the compiled RPY plugin could not be loaded ({exc}). Build it with "
+        f"`pip install .` (or see plugin/README.md); the Python engine still works"
+    )
+    log.debug(_load_error)
+else:
+    _built = _rpy.builtAgainstOpenMMVersion()
+    _running = openmm.version.version
+    if _built.split(".")[:2] != _running.split(".")[:2]:
+        # C++ classes (Integrator, ContextImpl) may differ in layout: do not touch them
+        _load_error = (
+            f"knotmm.plugin: compiled against OpenMM {_built} but OpenMM {_running} is "
+            f"installed; rebuild knotmm (pip install --force-reinstall --no-deps knotmm, or "
+            f"pip install -e . --no-build-isolation in a checkout)"
+        )
+        _rpy = None
+if _rpy is not None:
+    try:
+        _rpy.registerRPYKernelFactories()
+    except Exception as exc:  # noqa: BLE001 - any failure means: not usable
+        _load_error = f"knotmm.plugin: registering the RPY kernels failed: {exc}"
+        _rpy = None
+
+
+def available() -> bool:
+    """True when the compiled plugin loaded and its kernels are registered."""
+    return _rpy is not None
+
+
+def load_error() -> str | None:
+    """Why the plugin is unavailable, or ``None`` when it loaded."""
+    return _load_error
+
+
+if _rpy is not None:
+
+    class RPYIntegrator(_rpy.RPYIntegrator):
+        """Overdamped dynamics ``dr/dt = mu(r) F(r)`` (+ Ito noise) with the RPY mobility.
+
+        Parameters
+        ----------
+        step_size : float or openmm.unit.Quantity
+            Fixed step, or the first step of an adaptive method, in ps (= tau_d).
+        method : str
+            One of :data:`METHODS`; default ``"rk23"``.
+        error_tolerance : float
+            Adaptive methods: largest per-bead displacement error per step, in nm (= d).
+        bead_diameter : float
+            ``d`` of the RPY tensor, in nm.
+        mobility : float
+            Single-bead mobility ``mu0``, in nm / (ps kJ/mol/nm) (1 in model units).
+        kT : float
+            Thermal energy in kJ/mol (= F0 d, so ``kT = 1 / Pe``); needs a stochastic method.
+            0 (the default) is deterministic.
+        seed : int
+            Seed of the noise stream (0: a fresh one each time, as OpenMM's integrators).
+        min_step, max_step : float
+            Bounds of the adaptive step, in ps (knotmm's defaults 1e-7 and 1.0). An adaptive
+            step below ``min_step`` raises ``openmm.OpenMMException`` and keeps the last state.
+        threads : int
+            Threads of the RPY pair loop (used from about 256 beads; same result bit for bit).
+
+        Notes
+        -----
+        OpenMM-style methods: ``step(n)`` takes ``n`` accepted steps; ``stepTo(time)`` advances
+        to ``time`` (ps) exactly, shortening the last step; ``getStepSize()`` is the next step
+        an adaptive method will try. Counters: ``getNumForceEvaluations()``,
+        ``getNumAcceptedSteps()``, ``getNumRejectedSteps()``; rkc2 also
+        ``getLastStages()`` and ``getSpectralRadius()`` (1/ps). The adaptive state, the
+        counters, the cached velocity and the noise stream are part of
+        ``Context.createCheckpoint()``, so a loaded checkpoint continues bit for bit.
+        ``setBeadDiameter``, ``setMobility`` and ``setRandomNumberSeed`` must be called before
+        the Context is created. Kinetic energy is reported as 0 (no inertia).
+        """
+
+        def __init__(
+            self,
+            step_size,
+            method: str = "rk23",
+            error_tolerance: float = 1e-4,
+            *,
+            bead_diameter: float = 1.0,
+            mobility: float = 1.0,
+            kT: float = 0.0,
+            seed: int = 0,
+            min_step: float = 1e-7,
+            max_step: float = 1.0,
+            threads: int = 1,
+        ):
+            if method not in METHODS:
+                raise ValueError(
+                    f"method={method!r}: expected one of {', '.join(METHODS)}"
+                )
+            super().__init__(step_size, method, error_tolerance)
+            self.setBeadDiameter(bead_diameter)
+            self.setMobility(mobility)
+            self.setThermalEnergy(kT)
+            self.setRandomNumberSeed(int(seed))
+            self.setMinimumStepSize(min_step)
+            self.setMaximumStepSize(max_step)
+            self.setNumThreads(int(threads))
+
+        def __repr__(self) -> str:
+            return (
+                f"RPYIntegrator({self.getStepSize()}, method={self.getMethod()!r}, "
+                f"error_tolerance={self.getErrorTolerance():g}, kT={self.getThermalEnergy():g})"
+            )
+
+else:
+
+    class RPYIntegrator:  # type: ignore[no-redef]
+        """Placeholder when the plugin is unavailable: constructing it raises."""
+
+        def __init__(self, *args, **kwargs):
+            raise PluginUnavailableError(_load_error)
+
+
+
+def from_python_integrator(integrator, threads: int = 1) -> RPYIntegrator:
+    """The plugin integrator equivalent to one of knotmm's Python integrators.
+
+    Reads the attributes the Python integrators have (``name``, ``timestep``; adaptive:
+    ``tolerance``, ``max_timestep``, ``min_timestep``; Brownian: ``kT``, ``seed``), so it
+    does not depend on where those classes live.
+
+    Parameters
+    ----------
+    integrator : knotmm.integrators.Integrator or knotmm.brownian.StochasticIntegrator
+    threads : int
+        Threads of the plugin's pair loop.
+
+    Returns
+    -------
+    RPYIntegrator
+        Same method, step (in tau_d = ps), tolerance (in d = nm) and step bounds; for a
+        Brownian integrator the same ``kT`` (F0 d = kJ/mol). Deterministic methods then take
+        the same steps as the Python engine; the noise stream is the plugin's own (same
+        statistics, other numbers), seeded from ``seed`` (``None``: fresh entropy).
+
+    Raises
+    ------
+    ValueError
+        If the integrator's method has no plugin counterpart.
+    PluginUnavailableError
+        If the plugin is not available.
+    """
+    name = getattr(integrator, "name", None)
+    if name not in METHODS:
+        raise ValueError(
+            f"integrator={integrator!r}: method {name!r} has no plugin counterpart "
+            f"(expected one of {', '.join(METHODS)})"
+        )
+    kwargs = {"threads": threads}
+    tolerance = 1e-4
+    if METHODS[name][1]:
+        tolerance = float(integrator.tolerance)
+        kwargs.update(max_step=float(integrator.max_timestep),
+                      min_step=float(integrator.min_timestep))
+    if METHODS[name][2]:
+        seed = getattr(integrator, "seed", None)
+        # the plugin takes a nonzero 31-bit seed (0 means fresh entropy, as in OpenMM)
+        kwargs.update(kT=float(getattr(integrator, "kT", 0.0)),
+                      seed=0 if seed is None else int(seed) % 2147483646 + 1)
+    return RPYIntegrator(float(integrator.timestep), name, tolerance, **kwargs)

@@ -1,0 +1,96 @@
+#ifndef KNOTMM_RPY_INTEGRATOR_H_
+#define KNOTMM_RPY_INTEGRATOR_H_
+
+// Overdamped (inertia-free) dynamics with the overlap-corrected Rotne-Prager-Yamakawa
+// mobility:  dr_i/dt = sum_j mu_ij F_j  (+ sqrt(2 kT) B dW with B B^T = mu when kT > 0).
+//
+// Units are OpenMM's read as knotmm's model units: 1 nm = 1 bead diameter d, 1 kJ/mol =
+// F0 d, 1 ps = tau_d. The formulas of every method are those of knotmm.integrators and
+// knotmm.brownian (the Python reference engine); see plugin/README.md.
+
+#include "openmm/Integrator.h"
+#include "openmm/Kernel.h"
+#include "openmm/Vec3.h"
+
+#include <string>
+#include <vector>
+
+namespace KnotMM {
+
+class RPYIntegrator : public OpenMM::Integrator {
+public:
+    /**
+     * @param stepSize     first (adaptive) or fixed step, in ps (= tau_d)
+     * @param method       "euler", "heun", "midpoint", "rk23", "rkc2", "euler_maruyama"
+     *                     or "ito_heun"
+     * @param errorTolerance  largest per-bead displacement error per step (adaptive), in nm
+     */
+    explicit RPYIntegrator(double stepSize, const std::string& method = "rk23",
+                           double errorTolerance = 1e-4);
+
+    const std::string& getMethod() const { return method; }
+    /** True for rk23 and rkc2 (the step size follows error control). */
+    bool isAdaptive() const;
+    /** True for euler_maruyama and ito_heun (they add noise when kT > 0). */
+    bool isStochastic() const;
+
+    double getErrorTolerance() const { return errorTolerance; }
+    void setErrorTolerance(double tol);
+    double getBeadDiameter() const { return beadDiameter; }
+    void setBeadDiameter(double d);
+    double getMobility() const { return mobility; }
+    void setMobility(double mu0);
+    /** Thermal energy kT in kJ/mol (= F0 d); 0 is deterministic. */
+    double getThermalEnergy() const { return thermalEnergy; }
+    void setThermalEnergy(double kT);
+    int getRandomNumberSeed() const { return randomSeed; }
+    void setRandomNumberSeed(int seed);
+    double getMinimumStepSize() const { return minStepSize; }
+    void setMinimumStepSize(double h);
+    double getMaximumStepSize() const { return maxStepSize; }
+    void setMaximumStepSize(double h);
+    /** Threads of the RPY pair loop (rows are shared out; the result does not change). */
+    int getNumThreads() const { return numThreads; }
+    void setNumThreads(int n);
+    /**
+     * Start vector of rkc2's spectral-radius power iteration (one Vec3 per bead). Empty (the
+     * default): a fixed pseudo-random vector. Lets a caller reproduce another engine's run.
+     */
+    void setSpectralRadiusStartVector(const std::vector<OpenMM::Vec3>& v);
+    const std::vector<OpenMM::Vec3>& getSpectralRadiusStartVector() const { return rkcStart; }
+
+    /** Take `steps` accepted steps (fixed methods: of getStepSize()). */
+    void step(int steps) override;
+    /** Advance to `time` (ps) exactly: steps are never longer than what is left. */
+    void stepTo(double time);
+
+    long long getNumForceEvaluations() const;
+    long long getNumAcceptedSteps() const;
+    long long getNumRejectedSteps() const;
+    /** rkc2: stages of the last accepted step and the current spectral-radius estimate. */
+    int getLastStages() const;
+    double getSpectralRadius() const;
+
+protected:
+    void initialize(OpenMM::ContextImpl& context) override;
+    void cleanup() override;
+    std::vector<std::string> getKernelNames() override;
+    double computeKineticEnergy() override { return 0.0; }
+    bool kineticEnergyRequiresForce() const override { return false; }
+    void createCheckpoint(std::ostream& stream) const override;
+    void loadCheckpoint(std::istream& stream) override;
+
+private:
+    void checkInitialized() const;
+    void takeStep(double targetTime);
+    std::string method;
+    double errorTolerance, beadDiameter, mobility, thermalEnergy, minStepSize, maxStepSize;
+    int randomSeed, numThreads;
+    std::vector<OpenMM::Vec3> rkcStart;
+    OpenMM::Kernel kernel;
+    bool kernelReady = false;
+};
+
+} // namespace KnotMM
+
+#endif

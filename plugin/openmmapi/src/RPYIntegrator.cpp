@@ -1,0 +1,218 @@
+#include "knotmm/RPYIntegrator.h"
+#include "knotmm/RPYKernels.h"
+
+#include "openmm/Context.h"
+#include "openmm/OpenMMException.h"
+#include "openmm/internal/ContextImpl.h"
+
+#include <algorithm>
+#include <cmath>
+#include <istream>
+#include <limits>
+#include <ostream>
+#include <sstream>
+
+using namespace OpenMM;
+using namespace KnotMM;
+
+namespace {
+
+const char* const METHODS[] = {"euler", "heun", "midpoint", "rk23", "rkc2",
+                               "euler_maruyama", "ito_heun"};
+
+std::string fmt(double x) {
+    std::ostringstream s;
+    s.precision(6);
+    s << x;
+    return s.str();
+}
+
+void requirePositive(double value, const char* name, const char* hint) {
+    if (!(value > 0) || !std::isfinite(value))
+        throw OpenMMException(std::string(name) + "=" + fmt(value) + ": must be a finite number > 0" + hint);
+}
+
+// Checkpoint tag of the integrator's own part (changes when the layout changes).
+const int CHECKPOINT_VERSION = 1;
+
+} // namespace
+
+RPYIntegrator::RPYIntegrator(double stepSize, const std::string& method, double errorTolerance)
+    : method(method), errorTolerance(errorTolerance), beadDiameter(1.0), mobility(1.0),
+      thermalEnergy(0.0), minStepSize(1e-7), maxStepSize(1.0), randomSeed(0), numThreads(1) {
+    bool known = false;
+    for (const char* m : METHODS)
+        known = known || method == m;
+    if (!known)
+        throw OpenMMException("method='" + method + "': expected one of euler, heun, midpoint, "
+                              "rk23, rkc2, euler_maruyama, ito_heun");
+    requirePositive(stepSize, "stepSize", " (in ps = tau_d)");
+    requirePositive(errorTolerance, "errorTolerance", " (in nm = d)");
+    setStepSize(stepSize);
+    setConstraintTolerance(1e-5);
+}
+
+bool RPYIntegrator::isAdaptive() const { return method == "rk23" || method == "rkc2"; }
+
+bool RPYIntegrator::isStochastic() const {
+    return method == "euler_maruyama" || method == "ito_heun";
+}
+
+void RPYIntegrator::setErrorTolerance(double tol) {
+    requirePositive(tol, "errorTolerance", " (in nm = d)");
+    errorTolerance = tol;
+}
+
+void RPYIntegrator::setBeadDiameter(double d) {
+    requirePositive(d, "beadDiameter", " (in nm = d)");
+    if (owner != nullptr)
+        throw OpenMMException("beadDiameter: set it before the Context is created");
+    beadDiameter = d;
+}
+
+void RPYIntegrator::setMobility(double mu0) {
+    requirePositive(mu0, "mobility", " (single-bead mobility mu0, in nm/(ps kJ/mol/nm))");
+    if (owner != nullptr)
+        throw OpenMMException("mobility: set it before the Context is created");
+    mobility = mu0;
+}
+
+void RPYIntegrator::setThermalEnergy(double kT) {
+    if (!(kT >= 0) || !std::isfinite(kT))
+        throw OpenMMException("thermalEnergy=" + fmt(kT) + ": must be >= 0 (kT in kJ/mol = F0 d; 0 is deterministic)");
+    if (kT > 0 && !isStochastic())
+        throw OpenMMException("thermalEnergy=" + fmt(kT) + ": method '" + method +
+                              "' is deterministic; use euler_maruyama or ito_heun for kT > 0");
+    thermalEnergy = kT;
+}
+
+void RPYIntegrator::setRandomNumberSeed(int seed) {
+    if (owner != nullptr)
+        throw OpenMMException("randomNumberSeed: set it before the Context is created "
+                              "(the noise stream is seeded once)");
+    randomSeed = seed;
+}
+
+void RPYIntegrator::setMinimumStepSize(double h) {
+    requirePositive(h, "minimumStepSize", " (in ps)");
+    minStepSize = h;
+}
+
+void RPYIntegrator::setMaximumStepSize(double h) {
+    requirePositive(h, "maximumStepSize", " (in ps)");
+    maxStepSize = h;
+}
+
+void RPYIntegrator::setNumThreads(int n) {
+    if (n < 1)
+        throw OpenMMException("numThreads=" + std::to_string(n) + ": must be >= 1");
+    numThreads = n;
+}
+
+void RPYIntegrator::setSpectralRadiusStartVector(const std::vector<Vec3>& v) {
+    if (owner != nullptr)
+        throw OpenMMException("spectralRadiusStartVector: set it before the Context is created");
+    rkcStart = v;
+}
+
+void RPYIntegrator::initialize(ContextImpl& contextRef) {
+    if (owner != nullptr && &contextRef.getOwner() != owner)
+        throw OpenMMException("This Integrator is already bound to a context");
+    if (!rkcStart.empty()) {
+        int beads = 0;
+        const System& system = contextRef.getSystem();
+        for (int i = 0; i < system.getNumParticles(); i++)
+            beads += system.isVirtualSite(i) ? 0 : 1;
+        if ((int) rkcStart.size() != beads)
+            throw OpenMMException("spectralRadiusStartVector: " + std::to_string(rkcStart.size()) +
+                                  " vectors given, expected one per bead (" +
+                                  std::to_string(beads) + ")");
+    }
+    if (thermalEnergy > 0 && !isStochastic())
+        throw OpenMMException("thermalEnergy > 0 needs euler_maruyama or ito_heun, not " + method);
+    if (isAdaptive())  // as knotmm's adaptive integrators: never start above the largest step
+        setStepSize(std::min(getStepSize(), maxStepSize));
+    context = &contextRef;
+    owner = &contextRef.getOwner();
+    kernel = context->getPlatform().createKernel(IntegrateRPYStepKernel::Name(), contextRef);
+    kernel.getAs<IntegrateRPYStepKernel>().initialize(contextRef.getSystem(), *this);
+    kernelReady = true;
+}
+
+void RPYIntegrator::cleanup() {
+    kernelReady = false;
+    kernel = Kernel();
+}
+
+std::vector<std::string> RPYIntegrator::getKernelNames() {
+    return {IntegrateRPYStepKernel::Name()};
+}
+
+void RPYIntegrator::checkInitialized() const {
+    if (context == nullptr || !kernelReady)
+        throw OpenMMException("RPYIntegrator: not bound to a Context yet");
+}
+
+void RPYIntegrator::takeStep(double targetTime) {
+    // Barostats, thermostats etc. could change the state; then cached velocities are stale.
+    if (context->updateContextState())
+        kernel.getAs<IntegrateRPYStepKernel>().invalidateCache();
+    kernel.getAs<IntegrateRPYStepKernel>().execute(*context, *this, targetTime);
+}
+
+void RPYIntegrator::step(int steps) {
+    checkInitialized();
+    for (int i = 0; i < steps; i++)
+        takeStep(std::numeric_limits<double>::infinity());
+}
+
+void RPYIntegrator::stepTo(double time) {
+    checkInitialized();
+    // The same landing rule as knotmm.simulation: a time within 1e-9 (relative) counts as reached.
+    const double slack = 1e-9 * std::max(1.0, std::fabs(time));
+    while (context->getTime() < time - slack)
+        takeStep(time);
+}
+
+long long RPYIntegrator::getNumForceEvaluations() const {
+    checkInitialized();
+    return kernel.getAs<IntegrateRPYStepKernel>().getNumForceEvaluations();
+}
+
+long long RPYIntegrator::getNumAcceptedSteps() const {
+    checkInitialized();
+    return kernel.getAs<IntegrateRPYStepKernel>().getNumAcceptedSteps();
+}
+
+long long RPYIntegrator::getNumRejectedSteps() const {
+    checkInitialized();
+    return kernel.getAs<IntegrateRPYStepKernel>().getNumRejectedSteps();
+}
+
+int RPYIntegrator::getLastStages() const {
+    checkInitialized();
+    return kernel.getAs<IntegrateRPYStepKernel>().getLastStages();
+}
+
+double RPYIntegrator::getSpectralRadius() const {
+    checkInitialized();
+    return kernel.getAs<IntegrateRPYStepKernel>().getSpectralRadius();
+}
+
+void RPYIntegrator::createCheckpoint(std::ostream& stream) const {
+    double h = getStepSize();
+    stream.write((const char*) &CHECKPOINT_VERSION, sizeof(int));
+    stream.write((const char*) &h, sizeof(double));
+    kernel.getAs<IntegrateRPYStepKernel>().createCheckpoint(stream);
+}
+
+void RPYIntegrator::loadCheckpoint(std::istream& stream) {
+    int version = 0;
+    double h = 0;
+    stream.read((char*) &version, sizeof(int));
+    if (version != CHECKPOINT_VERSION)
+        throw OpenMMException("RPYIntegrator: checkpoint was written by another version of the plugin");
+    stream.read((char*) &h, sizeof(double));
+    setStepSize(h);
+    kernel.getAs<IntegrateRPYStepKernel>().loadCheckpoint(stream);
+}

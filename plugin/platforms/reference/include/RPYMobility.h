@@ -1,0 +1,42 @@
+#ifndef KNOTMM_RPY_MOBILITY_H_
+#define KNOTMM_RPY_MOBILITY_H_
+
+#include <memory>
+#include <vector>
+
+namespace OpenMM {
+class ThreadPool;
+}
+
+namespace KnotMM {
+
+/**
+ * Overlap-corrected RPY mobility of equal beads (diameter d, single-bead mobility mu0):
+ *   mu_ii = mu0 I,
+ *   r >= d: mu_ij = mu0 3d/(8r) [(1 + d^2/(6r^2)) I + (1 - d^2/(2r^2)) rhat rhat],
+ *   r <  d: mu_ij = mu0 [(1 - 9r/(16d)) I + 3r/(16d) rhat rhat].
+ * Coordinates are structure-of-arrays: x[3*n] = (x_0..x_{n-1}, y_0.., z_0..).
+ */
+class RPYMobility {
+public:
+    RPYMobility(double diameter, double mu0, int numThreads);
+    ~RPYMobility();
+    RPYMobility(RPYMobility&&) noexcept;
+    RPYMobility& operator=(RPYMobility&&) noexcept;
+    /** v = mu(x) f, matrix-free, O(n^2). All arrays SoA of length 3n. */
+    void velocities(int n, const double* x, const double* f, double* v) const;
+    /** Dense 3n x 3n mobility, bead-major (x0, y0, z0, x1, ...), row-major storage. */
+    void matrix(int n, const double* x, std::vector<double>& m) const;
+private:
+    void rows(int n, const double* x, const double* f, double* v, int begin, int end) const;
+    double d, mu0;
+    int numThreads;
+    std::unique_ptr<OpenMM::ThreadPool> pool;  // OpenMM's persistent workers, when numThreads > 1
+};
+
+/** In-place lower Cholesky factor of an SPD matrix (row-major n x n); false if not SPD. */
+bool choleskyLower(std::vector<double>& a, int n);
+
+} // namespace KnotMM
+
+#endif

@@ -1,0 +1,146 @@
+#include "RPYMobility.h"
+
+#include "openmm/internal/ThreadPool.h"
+
+#include <algorithm>
+#include <cmath>
+
+using namespace KnotMM;
+
+namespace {
+
+// Coefficients (a, b) of mu_ij / mu0 = a I + b rvec rvec^T (rvec unnormalised) from r^2, with
+// one square root and one division and no branch (so the pair loop vectorises); r = 0 (the
+// bead itself) gives the limit mu = I. invD = 1/d.
+struct Coefficients {
+    double a, b;
+};
+
+inline Coefficients pairCoefficients(double r2, double d, double invD) {
+    const double inv = 1.0 / std::sqrt(r2 > 1e-300 ? r2 : 1e-300);
+    const double r = r2 * inv;
+    const double s = d * inv;  // d / r
+    const double s2 = s * s;
+    const double aFar = 0.375 * s * (1.0 + s2 / 6.0);
+    const double bFar = 0.375 * s * (1.0 - 0.5 * s2) * (inv * inv);
+    const double aNear = 1.0 - 0.5625 * r * invD;
+    const double bNear = 0.1875 * inv * invD;
+    const double a = r >= d ? aFar : aNear;
+    const double b = r >= d ? bFar : bNear;
+    return {r2 == 0.0 ? 1.0 : a, r2 == 0.0 ? 0.0 : b};
+}
+
+} // namespace
+
+RPYMobility::RPYMobility(double diameter, double mu0, int numThreads)
+    : d(diameter), mu0(mu0), numThreads(std::max(1, numThreads)) {
+    if (this->numThreads > 1)
+        pool.reset(new OpenMM::ThreadPool(this->numThreads));
+}
+
+RPYMobility::~RPYMobility() = default;
+RPYMobility::RPYMobility(RPYMobility&&) noexcept = default;
+RPYMobility& RPYMobility::operator=(RPYMobility&&) noexcept = default;
+
+// The pair loop is compiled twice, for AVX2+FMA (x86-64-v3) and for the baseline, and the
+// loader picks the one the processor runs (GCC function multiversioning), so a build runs on
+// any x86-64 machine and is fast on current ones.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define KNOTMM_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define KNOTMM_CLONES
+#endif
+
+KNOTMM_CLONES
+void RPYMobility::rows(int n, const double* x, const double* f, double* v, int begin, int end) const {
+    const double* xs = x;
+    const double* ys = x + n;
+    const double* zs = x + 2 * n;
+    const double* fx = f;
+    const double* fy = f + n;
+    const double* fz = f + 2 * n;
+    const double invD = 1.0 / d;
+    for (int i = begin; i < end; i++) {
+        const double xi = xs[i], yi = ys[i], zi = zs[i];
+        double ax = 0.0, ay = 0.0, az = 0.0;
+        // Each row reads all beads and accumulates in registers (the full N^2 loop, not the
+        // half loop that scatters into v[j]): it vectorises and rows are independent.
+#pragma omp simd reduction(+ : ax, ay, az)
+        for (int j = 0; j < n; j++) {
+            const double r0 = xs[j] - xi;
+            const double r1 = ys[j] - yi;
+            const double r2 = zs[j] - zi;
+            const Coefficients c = pairCoefficients(r0 * r0 + r1 * r1 + r2 * r2, d, invD);
+            const double rf = c.b * (r0 * fx[j] + r1 * fy[j] + r2 * fz[j]);
+            ax += c.a * fx[j] + rf * r0;
+            ay += c.a * fy[j] + rf * r1;
+            az += c.a * fz[j] + rf * r2;
+        }
+        v[i] = mu0 * ax;
+        v[n + i] = mu0 * ay;
+        v[2 * n + i] = mu0 * az;
+    }
+}
+
+void RPYMobility::velocities(int n, const double* x, const double* f, double* v) const {
+    // Below a few hundred beads waking the workers costs more than the loop saves.
+    const int threads = std::min(numThreads, std::max(1, n / 128));
+    if (threads <= 1 || !pool) {
+        rows(n, x, f, v, 0, n);
+        return;
+    }
+    // Row i costs the same for every i: equal blocks, one per worker (rows are independent,
+    // so the result does not depend on the number of threads).
+    pool->execute([&](OpenMM::ThreadPool&, int index) {
+        if (index < threads)
+            rows(n, x, f, v, (int) ((long long) n * index / threads),
+                 (int) ((long long) n * (index + 1) / threads));
+    });
+    pool->waitForThreads();
+}
+
+void RPYMobility::matrix(int n, const double* x, std::vector<double>& m) const {
+    const int dim = 3 * n;
+    m.assign((size_t) dim * dim, 0.0);
+    for (int i = 0; i < n; i++) {
+        for (int k = 0; k < 3; k++)
+            m[(size_t) (3 * i + k) * dim + 3 * i + k] = mu0;
+        for (int j = i + 1; j < n; j++) {
+            const double rv[3] = {x[j] - x[i], x[n + j] - x[n + i], x[2 * n + j] - x[2 * n + i]};
+            const Coefficients c = pairCoefficients(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2], d, 1.0 / d);
+            const double a = c.a, b = c.b;
+            for (int k = 0; k < 3; k++)
+                for (int l = 0; l < 3; l++) {
+                    const double val = mu0 * (b * rv[k] * rv[l] + (k == l ? a : 0.0));
+                    m[(size_t) (3 * i + k) * dim + 3 * j + l] = val;
+                    m[(size_t) (3 * j + l) * dim + 3 * i + k] = val;
+                }
+        }
+    }
+}
+
+KNOTMM_CLONES
+bool KnotMM::choleskyLower(std::vector<double>& a, int n) {
+    // Row-oriented Cholesky-Crout: L[i][j] = (A[i][j] - sum_k<j L[i][k] L[j][k]) / L[j][j];
+    // the inner sums are contiguous dot products. The upper triangle is zeroed.
+    for (int i = 0; i < n; i++) {
+        double* li = &a[(size_t) i * n];
+        for (int j = 0; j <= i; j++) {
+            const double* lj = &a[(size_t) j * n];
+            double s = li[j];
+#pragma omp simd reduction(- : s)
+            for (int k = 0; k < j; k++)
+                s -= li[k] * lj[k];
+            if (j < i)
+                li[j] = s / lj[j];
+            else {
+                if (!(s > 0.0))
+                    return false;
+                li[i] = std::sqrt(s);
+            }
+        }
+        for (int j = i + 1; j < n; j++)
+            li[j] = 0.0;
+    }
+    return true;
+}

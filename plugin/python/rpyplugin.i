@@ -1,0 +1,88 @@
+// SWIG interface of the knotmm RPY plugin. Importing OpenMM's own interface makes the Python
+// class RPYIntegrator a subclass of openmm.Integrator, so Context and app.Simulation accept it.
+%module(package="knotmm.plugin") rpyplugin
+
+%{
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+#include "OpenMM.h"
+#include "OpenMMAmoeba.h"
+#include "OpenMMDrude.h"
+#include "openmm/RPMDIntegrator.h"
+#include "openmm/RPMDMonteCarloBarostat.h"
+#include "knotmm/RPYIntegrator.h"
+using OpenMM::Vec3;  // OpenMM's typemaps name it unqualified
+
+extern "C" void registerRPYKernelFactories();
+
+// The OpenMM version this module was compiled against (libOpenMM's C++ ABI is not stable
+// across minor versions).
+static const char* builtAgainstOpenMMVersion() { return KNOTMM_OPENMM_BUILD_VERSION; }
+
+// OpenMM's typemaps accept numpy arrays; they ask this first.
+static bool isNumpyAvailable() { return true; }
+%}
+
+%init %{
+    import_array();
+%}
+
+%import(module="openmm.openmm") "swig/OpenMMSwigHeaders.i"
+%include "swig/typemaps.i"
+%include <std_string.i>
+
+// C++ exceptions become openmm.OpenMMException, as in OpenMM's own module.
+%exception {
+    try {
+        $action
+    } catch (std::exception& e) {
+        PyObject* module = PyImport_ImportModule("openmm");
+        PyObject* type = module ? PyObject_GetAttrString(module, "OpenMMException") : NULL;
+        PyErr_Clear();
+        PyErr_SetString(type ? type : PyExc_RuntimeError, e.what());
+        Py_XDECREF(type);
+        Py_XDECREF(module);
+        SWIG_fail;
+    }
+}
+
+%feature("autodoc", "0");
+
+extern "C" void registerRPYKernelFactories();
+static const char* builtAgainstOpenMMVersion();
+
+namespace KnotMM {
+
+class RPYIntegrator : public OpenMM::Integrator {
+public:
+    RPYIntegrator(double stepSize, const std::string& method = "rk23", double errorTolerance = 1e-4);
+    const std::string& getMethod() const;
+    bool isAdaptive() const;
+    bool isStochastic() const;
+    double getErrorTolerance() const;
+    void setErrorTolerance(double tol);
+    double getBeadDiameter() const;
+    void setBeadDiameter(double d);
+    double getMobility() const;
+    void setMobility(double mu0);
+    double getThermalEnergy() const;
+    void setThermalEnergy(double kT);
+    int getRandomNumberSeed() const;
+    void setRandomNumberSeed(int seed);
+    double getMinimumStepSize() const;
+    void setMinimumStepSize(double h);
+    double getMaximumStepSize() const;
+    void setMaximumStepSize(double h);
+    int getNumThreads() const;
+    void setNumThreads(int n);
+    void setSpectralRadiusStartVector(const std::vector<Vec3>& v);
+    virtual void step(int steps);
+    void stepTo(double time);
+    long long getNumForceEvaluations() const;
+    long long getNumAcceptedSteps() const;
+    long long getNumRejectedSteps() const;
+    int getLastStages() const;
+    double getSpectralRadius() const;
+};
+
+}

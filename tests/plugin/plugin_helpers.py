@@ -1,0 +1,22 @@
+"""Helpers of the plugin tests (their own module: tests/ and tests/plugin both have a conftest)."""
+
+from __future__ import annotations
+
+import numpy as np
+import openmm
+
+
+def plugin_context(system, positions, integrator, platform="Reference"):
+    """An OpenMM Context on ``platform`` (CPU: one thread) holding ``positions`` (in nm = d)."""
+    plat = openmm.Platform.getPlatformByName(platform)
+    props = {"Threads": "1"} if platform == "CPU" else {}
+    ctx = openmm.Context(system, integrator, plat, props)
+    ctx.setPositions(np.asarray(positions, dtype=np.float64))
+    return ctx
+
+
+def positions_of(ctx) -> np.ndarray:
+    """The Context's positions, shape (n_particles, 3), float64, in nm."""
+    return ctx.getState(getPositions=True).getPositions(asNumpy=True).value_in_unit(
+        openmm.unit.nanometer
+    )
