@@ -34,8 +34,8 @@ _CONTEXTS = []
 
 
 def _python_engine(x):
-    from knotmm.integrators import Euler
-    from knotmm.simulation import Simulation
+    from knotmm.dynamics.deterministic import Euler
+    from knotmm.engine.simulation import Simulation
 
     sim = Simulation(x, integrator=Euler(1e-4), platform="CPU", threads=1)
     return lambda: sim.velocity(sim.positions)
@@ -44,8 +44,8 @@ def _python_engine(x):
 def _plugin(x, threads, method="euler"):
     import openmm
 
+    from knotmm.model.system import chain_system as build_system
     from knotmm.plugin import RPYIntegrator
-    from knotmm.system import build_system
 
     integ = RPYIntegrator(1e-5, method, threads=threads)
     ctx = openmm.Context(build_system(x), integ, openmm.Platform.getPlatformByName("CPU"),
@@ -87,7 +87,7 @@ def main(argv=None):
     _CLOCK = time.perf_counter if args.clock == "wall" else time.process_time
 
     from knotmm.plugin import available, load_error
-    from knotmm.templates import torus_knot
+    from knotmm.shapes import torus_knot
 
     if not available():
         raise SystemExit(load_error())
@@ -135,8 +135,8 @@ def main(argv=None):
 
 
 def _whole_run(x, duration):
-    from knotmm.integrators import RK23
-    from knotmm.simulation import Simulation
+    from knotmm.dynamics.deterministic import RK23
+    from knotmm.engine.simulation import Simulation
 
     sim = Simulation(x, integrator=RK23(0.01), platform="CPU", threads=1)
     t0 = _CLOCK()

@@ -11,9 +11,10 @@ import openmm.app as app
 import pytest
 from plugin_helpers import plugin_context, positions_of
 
+from knotmm.model.system import chain_system as build_system
+from knotmm.model.topology import bead_topology as build_topology
 from knotmm.plugin import RPYIntegrator
-from knotmm.system import build_system, build_topology
-from knotmm.templates import torus_knot
+from knotmm.shapes import torus_knot
 
 
 @pytest.fixture(scope="module")

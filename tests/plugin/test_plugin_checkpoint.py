@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from plugin_helpers import plugin_context, positions_of
 
+from knotmm.model.system import chain_system as build_system
 from knotmm.plugin import RPYIntegrator
-from knotmm.system import build_system
-from knotmm.templates import torus_knot
+from knotmm.shapes import torus_knot
 
 
 def counters(integ):

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from plugin_helpers import plugin_context, positions_of
 
-from knotmm.integrators import RK23, RKC2, Euler, Heun, Midpoint
+from knotmm.dynamics.deterministic import RK23, RKC2, Euler, Heun, Midpoint
+from knotmm.engine.simulation import Simulation
+from knotmm.model.system import chain_system as build_system
 from knotmm.plugin import RPYIntegrator
-from knotmm.simulation import Simulation
-from knotmm.system import build_system
-from knotmm.templates import torus_knot
+from knotmm.shapes import torus_knot
 
 
 @pytest.fixture(scope="module")
@@ -142,7 +142,7 @@ def test_rk23_global_error_follows_tolerance(chain, reference):
 
 def test_virtual_sites_match_python_engine(chain):
     """segment_repulsion: bond midpoints are OpenMM virtual sites; only beads move."""
-    from knotmm.system import ChainModel, site_positions
+    from knotmm.model.system import ChainModel, site_positions
 
     model = ChainModel(segment_repulsion=True)
     sim = Simulation(chain, model=model, integrator=RK23(0.01), platform="Reference")
@@ -160,7 +160,7 @@ def test_virtual_sites_match_python_engine(chain):
 
 def test_from_python_integrator(chain):
     """The converted integrator takes the Python engine's steps (rk23 with its settings)."""
-    from knotmm.brownian import ItoHeun
+    from knotmm.dynamics.brownian import ItoHeun
     from knotmm.plugin import from_python_integrator
 
     py = RK23(0.02, tolerance=1e-5, max_timestep=0.04, min_timestep=1e-6)
