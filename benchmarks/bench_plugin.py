@@ -2,14 +2,15 @@
 
 For each N (a T(2,3) template) on the CPU platform (one thread), times
 
-* ``python``  : ``knotmm.simulation.Simulation.velocity`` (OpenMM forces through the Python
-  API, then the numba RPY loop of :mod:`knotmm.mobility`), per call;
+* ``python``  : ``knotmm.engine.simulation.Simulation.velocity`` (OpenMM forces through the Python
+  API, then the numba RPY loop of :mod:`knotmm.dynamics.mobility`), per call;
 * ``plugin``  : ``RPYIntegrator("euler").step(k)`` divided by ``k``: one Euler step is one
   evaluation (forces asked for in C++, the C++ RPY loop) plus the position update;
 * ``plugin2`` : the same with the plugin's pair loop on two threads (from N = 256 up);
 
 and, with ``--run`` (default 5 tau_d), the wall time of a whole rk23 run from the template
-(tolerance 1e-4): ``knotmm.simulation.Simulation.run`` against ``RPYIntegrator.stepTo``, which
+(tolerance 1e-4): ``knotmm.engine.simulation.Simulation.run`` against
+``RPYIntegrator.stepTo``, which
 adds the Python engine's per-stage numpy work to the comparison (one run each, after the
 evaluation timings).
 

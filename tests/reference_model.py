@@ -1,6 +1,6 @@
-"""An independent numpy implementation of the model in model.md, for the tests.
+"""An independent numpy implementation of the model in docs/model.md, for the tests.
 
-Written from the formulas of model.md only (nothing is imported from knotmm), in model units:
+Written from the formulas of docs/model.md only (nothing is imported from knotmm), in model units:
 d = 1, F0 = 1, mu0 = 1. Loops are kept naive on purpose: this is the slow, obviously
 correct version the engine is checked against.
 """
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-#: The study's parameters (model.md).
+#: The study's parameters (docs/model.md).
 STUDY = dict(
     bond_length=0.6,
     bond_stiffness=50.0,
@@ -56,7 +56,7 @@ def _angle(u, w):
 
 
 def energies(x, **overrides) -> dict:
-    """Energy of each term of model.md, in F0 d."""
+    """Energy of each term of docs/model.md, in F0 d."""
     p = params(**overrides)
     x = np.asarray(x, dtype=np.float64)
     n = len(x)
@@ -143,7 +143,7 @@ def steric_pair_force(r, sigma=0.5, eps=0.25):
 
 
 def rpy_block(ri, rj):
-    """The 3x3 RPY mobility mu_ij / mu0 of model.md (beads of diameter d = 1)."""
+    """The 3x3 RPY mobility mu_ij / mu0 of docs/model.md (beads of diameter d = 1)."""
     if ri is rj:
         return np.eye(3)
     rvec = np.asarray(rj, float) - np.asarray(ri, float)
@@ -161,7 +161,7 @@ def rpy_block(ri, rj):
 
 
 def rpy_velocities(x, f):
-    """v_i = sum_j mu_ij F_j by a naive double loop over model.md's tensor."""
+    """v_i = sum_j mu_ij F_j by a naive double loop over docs/model.md's tensor."""
     x = np.asarray(x, dtype=np.float64)
     f = np.asarray(f, dtype=np.float64)
     v = np.zeros_like(x)

@@ -2,7 +2,7 @@
 
 Measured on a steady window of a run, in model units (d, tau_d): the sedimentation speed V,
 the major radius rho0 (and N l0 / (2 pi p)), tau_sed = 2 rho0 / V, the swirl and rotation
-periods from Fourier spectra, a per-bead fit of the vortex-knot formula (model.md,
+periods from Fourier spectra, a per-bead fit of the vortex-knot formula (docs/model.md,
 "Observables") with the scaled coordinates that collapse all beads, the writhe and
 handedness, the rotation sense seen from above, and the knot type along the run.
 

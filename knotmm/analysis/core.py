@@ -37,7 +37,7 @@ from knotmm.analysis.topology import (
 from knotmm.analysis.window import steady_window
 from knotmm.errors import ConfigError
 from knotmm.io.run_data import RunData, load_run
-from knotmm.io.rundir import ANALYSIS_FILE
+from knotmm.io.rundir import ANALYSIS_FILE, writing
 
 __all__ = ["analyze", "analyze_run", "ANALYSIS_FILE"]
 
@@ -323,12 +323,13 @@ def analyze_run(
     data = load_run(run_dir, frame_interval=frame_interval, topology=topology)
     result = analyze(data, t_from=t_from, t_to=t_to, p=p, q=q, knot_samples=knot_samples)
     out = Path(out_dir) if out_dir is not None else data.directory
-    out.mkdir(parents=True, exist_ok=True)
-    if plots:
-        from knotmm.analysis.plots import save_plots
-
-        result.plots = [f.name for f in save_plots(result, out)]
     path = out / ANALYSIS_FILE
-    path.write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n")
+    with writing(out):  # a read-only or full directory: one line naming it, exit 2
+        out.mkdir(parents=True, exist_ok=True)
+        if plots:
+            from knotmm.analysis.plots import save_plots
+
+            result.plots = [f.name for f in save_plots(result, out)]
+        path.write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n")
     logger.info("wrote %s", path)
     return result

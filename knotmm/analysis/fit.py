@@ -1,6 +1,6 @@
 """Fit of the vortex-knot formula to every bead, and the scaled coordinates.
 
-The model (model.md, "Observables"), with the time ``s = t - t0`` counted from the window
+The model (docs/model.md, "Observables"), with the time ``s = t - t0`` counted from the window
 start, the swirl angle ``theta_i = 2 pi s / tau_swirl + phi_i`` and ``k = sqrt(p^2+q^2)/q``:
 
     rho_i(s)   = rho0 + C sin(theta_i)
@@ -381,7 +381,7 @@ class ScaledCoordinates:
 
 
 def scaled_coordinates(fit: VortexFit, times, rho, alpha, z_lab) -> ScaledCoordinates:
-    """Scale bead coordinates with the fitted parameters (model.md's collapse).
+    """Scale bead coordinates with the fitted parameters (docs/model.md's collapse).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Synthetic trajectories with known answers, built from the vortex-knot formula.
 
 A torus knot T(p, q) that falls at speed V, swirls with period tau_swirl and rotates
-rigidly with period tau_rot (model.md, "Observables"). Bead ``i`` sits at template angle
+rigidly with period tau_rot (docs/model.md, "Observables"). Bead ``i`` sits at template angle
 ``a_i = 2 pi p i / N`` and carries the swirl phase ``q a_i / p`` (the loops wind q times
 around the torus core), so every frame is a torus knot with an elliptic cross-section:
 

@@ -72,6 +72,15 @@ def console_main() -> int:
     code = main()
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if code == 130:
+        # Stopped by a signal: every file is closed and run.toml written. Python's own
+        # teardown of the loaded libraries takes 1-3 s more on a loaded machine; a user (or a
+        # batch system) asking to stop expects the process gone within a second.
+        import os
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
     return code
 
 

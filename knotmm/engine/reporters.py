@@ -204,7 +204,7 @@ class KnotTypeWatch(TimeScheduled):
     """Check the knot type every ``interval`` tau_d (topoly) and react to a change.
 
     A bead model can let one strand pass through another when the strands are pressed
-    together (model.md): this reporter notices it. With the default identifier, topoly runs
+    together (docs/model.md): this reporter notices it. With the default identifier, topoly runs
     in a worker process beside the simulation: a check is judged at a later report (or when
     the run ends), so ``on_change="stop"`` stops the run one check interval after the frame
     where the change was seen, and the message names that frame's time. Every change is recorded in

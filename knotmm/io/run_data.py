@@ -182,6 +182,12 @@ def _ring_notes(bonds: np.ndarray, n: int, top: Path) -> list[str]:
             f"{top.name} has no CONECT records: the chain is taken as the closed ring "
             "0-1-...-(N-1)-0"
         ]
+    if missing == {(0, n - 1)}:
+        return [
+            f"{top.name} has no bond closing the ring ({n - 1}-0): the chain is open there, "
+            "and is analysed as the closed ring 0-1-...-(N-1)-0 (writhe and knot type close "
+            "it with that bond)"
+        ]
     if missing:
         example = sorted(missing)[0]
         return [

@@ -3,9 +3,10 @@
 :class:`RPYIntegrator` is an ``openmm.Integrator``: give it to ``openmm.Context`` or
 ``openmm.app.Simulation`` like any OpenMM integrator. Inside a step the plugin asks the Context
 for forces in C++, applies the overlap-corrected Rotne-Prager-Yamakawa mobility
-(:mod:`knotmm.mobility`'s formulas) and moves the beads, so a step never returns to Python.
-The methods are those of :mod:`knotmm.integrators` and :mod:`knotmm.brownian`, formula for
-formula (the tests in ``tests/plugin`` hold the plugin to them):
+(:mod:`knotmm.dynamics.mobility`'s formulas) and moves the beads, so a step never returns to
+Python. The methods are those of :mod:`knotmm.dynamics.deterministic` and
+:mod:`knotmm.dynamics.brownian`, formula for formula (the tests in ``tests/plugin`` hold the
+plugin to them):
 
 ================== ===== ========= ==========================================================
 method             order adaptive  update
@@ -22,7 +23,7 @@ method             order adaptive  update
 ``v = mu F`` with ``mu`` the 3N x 3N RPY mobility (bead diameter ``d``, single-bead mobility
 ``mu0``). OpenMM's units are read as knotmm's model units: 1 nm = 1 d, 1 kJ/mol = 1 F0 d,
 1 ps = 1 tau_d. Forces are computed with the chain shifted to its centre of mass (as
-:class:`knotmm.simulation.Simulation` does); the Context keeps the true positions. Virtual
+:class:`knotmm.engine.simulation.Simulation` does); the Context keeps the true positions. Virtual
 sites (``ChainModel.segment_repulsion``) are not beads: OpenMM places them and hands their
 forces to the beads.
 
@@ -198,7 +199,8 @@ def from_python_integrator(integrator, threads: int = 1) -> RPYIntegrator:
 
     Parameters
     ----------
-    integrator : knotmm.integrators.Integrator or knotmm.brownian.StochasticIntegrator
+    integrator : knotmm.dynamics.deterministic.Integrator or
+                 knotmm.dynamics.brownian.StochasticIntegrator
     threads : int
         Threads of the plugin's pair loop.
 

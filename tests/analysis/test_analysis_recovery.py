@@ -11,7 +11,7 @@ from knotmm.analysis import analyze, analyze_run, load_run
 from knotmm.analysis.synthetic import vortex_knot_positions, write_run_directory
 from knotmm.io.run_data import RunData
 
-# Realistic numbers for T(2,3), N = 90 (model.md; Gruziel et al. 2018).
+# Realistic numbers for T(2,3), N = 90 (docs/model.md; Gruziel et al. 2018).
 TREFOIL = dict(
     n_beads=90, p=2, q=3, rho0=4.3, swirl_amplitude=0.5, tau_swirl=20.0, tau_rot=400.0, velocity=7.0
 )

@@ -119,3 +119,13 @@ def test_default_plot_beads_are_not_symmetric_images_of_each_other():
     assert _default_beads(90, 6, q=3) == [0, 5, 10, 15, 20, 25]
     assert _default_beads(91, 3, q=3) == [0, 30, 61]  # no exact symmetry: whole chain
     assert _default_beads(90, 3, q=None) == [0, 30, 60]
+
+
+def test_analyze_into_an_unwritable_place_is_one_line(run, capsys):
+    """Issue 11, item 4 (analyze): an output directory that cannot be made or written gives
+    one line naming the path and the cause, exit 2, no traceback. /proc refuses new entries
+    even to root, so this needs no permission games."""
+    target = "/proc/knotmm-analysis-out"
+    assert main(["analyze", str(run), "--knot-samples", "0", "--out", target]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and target in err[0] and "Traceback" not in err[0], err

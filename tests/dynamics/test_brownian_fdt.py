@@ -156,7 +156,7 @@ def boltzmann_cdf():
 
 
 def _pair_ab(r):
-    """Vectorised RPY pair tensor mu_12 = a I + c rhat rhat, written from model.md."""
+    """Vectorised RPY pair tensor mu_12 = a I + c rhat rhat, written from docs/model.md."""
     far = r >= 1.0
     rs = np.where(far, r, 1.0)
     a = np.where(far, 3 / (8 * rs) * (1 + 1 / (6 * rs**2)), 1 - 9 * r / 16)

@@ -1,4 +1,4 @@
-"""The RPY mobility kernels against model.md's tensor, written as a naive loop in the test."""
+"""The RPY mobility kernels against docs/model.md's tensor, written as a naive loop in the test."""
 
 from __future__ import annotations
 
@@ -107,7 +107,7 @@ def _parallel_perpendicular(r):
 
 
 def test_pair_tensor_continuous_with_continuous_slope_at_contact():
-    # closed forms from model.md at r = d: both branches give 5/8 along rhat, 7/16 across,
+    # closed forms from docs/model.md at r = d: both branches give 5/8 along rhat, 7/16 across,
     # with slopes -3/8 and -9/16 (outside: d/dr of 3/(4r) - 1/(8r^3), 3/(8r) + 1/(16r^3)).
     par, perp = _parallel_perpendicular(1.0)
     assert par == pytest.approx(5 / 8, rel=1e-15) and perp == pytest.approx(7 / 16, rel=1e-15)
@@ -170,7 +170,7 @@ def test_shape_errors_name_the_arguments():
 # -- two beads falling together ---------------------------------------------------------------
 # Two beads under the same force F = -F0 z. With mu_ij = a(r) I + b(r) rhat rhat, both move
 # with U = mu0 F0 (1 + a) when side by side (rhat perpendicular to gravity) and with
-# U = mu0 F0 (1 + a + b) when one is above the other (rhat along gravity). From model.md:
+# U = mu0 F0 (1 + a + b) when one is above the other (rhat along gravity). From docs/model.md:
 #   r >= d, side by side:  1 + 3/(8r) + 1/(16 r^3)       (= 1 + 3a/(4r) + a^3/(2r^3), a = d/2)
 #   r >= d, one above:     1 + 3/(4r) - 1/(8 r^3)        (= 1 + 3a/(2r) - a^3/r^3)
 #   r <  d, side by side:  2 - 9r/16

@@ -138,3 +138,25 @@ def test_broken_topology(run):
     (run / "topology.pdb").write_text("this is not a PDB\n")
     with pytest.raises(TrajectoryFileError, match="topology"):
         load_run(run)
+
+
+def test_open_chain_is_analysed_as_a_ring_with_a_note(run):
+    """A PDB without the ring-closing CONECT (issue 11, item 7): loaded, with a note saying
+    that the ring is closed by assumption (the closed ring stays the default)."""
+    top = run / "topology.pdb"
+    lines = top.read_text().splitlines()
+    # drop the closing bond 29-0 from the CONECT records (PDB serials are 1-based: 30 <-> 1)
+    kept = []
+    for line in lines:
+        if line.startswith("CONECT"):
+            fields = line.split()
+            serials = [int(f) for f in fields[1:]]
+            if serials[0] in (1, 30):
+                other = 30 if serials[0] == 1 else 1
+                serials = [serials[0]] + [s for s in serials[1:] if s != other]
+            line = "CONECT" + "".join(f"{s:5d}" for s in serials)
+        kept.append(line)
+    top.write_text("\n".join(kept) + "\n")
+    data = load_run(run)
+    assert any("no bond closing the ring (29-0)" in note for note in data.notes), data.notes
+    assert data.n_beads == 30

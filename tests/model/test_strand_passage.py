@@ -75,7 +75,7 @@ def test_midpoint_sites_do_not_change_an_uncrossed_chain():
 
 
 def _naive_site_forces(y, eps=0.25, sig=0.5):
-    """Extra forces of the midpoint sites, summed pair by pair from model.md's LJ form.
+    """Extra forces of the midpoint sites, summed pair by pair from docs/model.md's LJ form.
 
     Sites: beads 0..n-1 and midpoints n..2n-1 (midpoint k between beads k and k+1). Pairs
     with at least one midpoint interact unless excluded (a midpoint with beads k-1..k+2

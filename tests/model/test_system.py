@@ -1,6 +1,6 @@
-"""The OpenMM System is the model of model.md: forces and energies of every term.
+"""The OpenMM System is the model of docs/model.md: forces and energies of every term.
 
-Everything is checked against tests/reference_model.py (numpy, written from model.md) and
+Everything is checked against tests/reference_model.py (numpy, written from docs/model.md) and
 against central finite differences of the OpenMM energy. The Reference platform computes in
 double precision and is checked tightly; the CPU platform (single-precision nonbonded
 kernels) is checked with a looser tolerance.

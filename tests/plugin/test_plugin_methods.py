@@ -1,8 +1,9 @@
 """Each deterministic method of the plugin against knotmm's Python engine, and its order.
 
 Both engines run the T(2,3) chain of 40 beads on OpenMM's Reference platform (float64 forces)
-from the same template; the Python engine is :class:`knotmm.simulation.Simulation` with the
-integrators of :mod:`knotmm.integrators` and the numba mobility of :mod:`knotmm.mobility`.
+from the same template; the Python engine is :class:`knotmm.engine.simulation.Simulation` with the
+integrators of :mod:`knotmm.dynamics.deterministic` and the numba mobility of
+:mod:`knotmm.dynamics.mobility`.
 """
 
 from __future__ import annotations

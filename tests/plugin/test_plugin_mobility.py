@@ -1,4 +1,4 @@
-"""The plugin's RPY velocities against a naive numpy RPY written here from model.md.
+"""The plugin's RPY velocities against a naive numpy RPY written here from docs/model.md.
 
 One Euler step of size h under constant forces F moves the beads by exactly ``h mu(r) F``:
 the step's displacement divided by h is the plugin's velocity.
@@ -15,7 +15,7 @@ from knotmm.plugin import RPYIntegrator
 
 
 def naive_rpy(x, d=1.0, mu0=1.0):
-    """Dense 3N x 3N RPY tensor, bead-major, from model.md's three cases (pair by pair)."""
+    """Dense 3N x 3N RPY tensor, bead-major, from docs/model.md's three cases (pair by pair)."""
     n = len(x)
     m = np.zeros((3 * n, 3 * n))
     eye = np.eye(3)
@@ -81,7 +81,7 @@ def test_pairs_at_and_near_contact():
 
 
 def test_single_bead_falls_at_mu0_f():
-    """A lone bead under F moves mu0 F per unit time (model.md: one d per tau_d under F0)."""
+    """A lone bead under F moves mu0 F per unit time (docs/model.md: one d per tau_d under F0)."""
     x = np.zeros((1, 3))
     got = plugin_velocity(x, np.array([[0.0, 0.0, -1.0]]), h=0.25, mobility=1.0)
     np.testing.assert_allclose(got, [[0.0, 0.0, -1.0]], atol=1e-15)
