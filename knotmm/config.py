@@ -166,6 +166,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
         ),
         "platform": Key("str", "auto", "OpenMM platform: auto, Reference, CPU, CUDA, OpenCL",
                         choices=("auto", "Reference", "CPU", "CUDA", "OpenCL", "HIP")),
+        "engine": Key(
+            "str", "auto",
+            "who integrates: plugin (the compiled knotmm.plugin.RPYIntegrator: every step in "
+            "C++, same steps as python for deterministic methods; Cholesky noise; Reference "
+            "and CPU platforms), python (the Python integrators, the reference), auto (plugin "
+            "when it is built, except Brownian runs at finite run.peclet, whose plugin steps "
+            "cost 1.3-1.6x the python engine's at N = 90, and GPU platforms: python)",
+            choices=("auto", "plugin", "python"),
+        ),
         "threads": Key("int", 1, "CPU platform threads", 1),
         "mobility_threads": Key(
             "int", 1,

@@ -195,6 +195,7 @@ def run(
             "created": _dt.datetime.now().isoformat(timespec="seconds"),
             **template.facts,
             "n_beads": int(template.positions.shape[0]),
+            "engine": sim.engine,
             "integrator": sim.integrator.describe(),
             "platform": sim.platform_name,
             "frame_interval": cfg["output.frame_interval"],
@@ -268,7 +269,8 @@ def resume(
                 f"--duration {duration:g}: the checkpoint in {str(directory)!r} is at t = "
                 f"{state['time']:g} tau_d already; give a longer duration"
             )
-        sim = Simulation.from_config(cfg, state["positions"])
+        sim = Simulation.from_config(cfg, state["positions"],
+                                     engine=_checkpoint_engine(directory, state["engine"]))
         counters = sim.loadCheckpoint(directory / CHECKPOINT_FILE)
         truncate_dcd(directory / TRAJECTORY_FILE, int(counters["frames"]))
         truncate_csv(directory / OBSERVABLES_FILE, int(counters["rows"]))
@@ -286,8 +288,30 @@ def resume(
     return _drive(sim, cfg, directory, facts, counters, progress, wall0, lock)
 
 
+def _checkpoint_engine(directory: Path, engine: str) -> str:
+    """The engine a resumed run continues with: the one that wrote its checkpoint.
+
+    A run goes on exactly only with the engine it was made with, whatever ``run.engine =
+    "auto"`` would pick here now; a plugin run where the plugin is missing is refused.
+    """
+    import knotmm.plugin
+
+    if engine == "plugin" and not knotmm.plugin.available():
+        raise ConfigError(
+            f"--resume {str(directory)!r}: the run was made with the plugin engine, which "
+            f"cannot be used here ({knotmm.plugin.load_error()}); resume it where the plugin "
+            f"is built"
+        )
+    return engine
+
+
 def _check_same_physics(directory: Path, cfg: RunConfig, stored: dict | None) -> None:
-    """Refuse to resume when run.toml's parameters are no longer the checkpoint's."""
+    """Refuse to resume when run.toml's parameters are no longer the checkpoint's.
+
+    A key the checkpoint does not know (added to knotmm since) counts as its default.
+    """
+    from knotmm.config import SCHEMA
+
     if stored is None:  # a checkpoint from before knotmm stored its configuration
         return
     now = cfg.to_dict()
@@ -296,7 +320,10 @@ def _check_same_physics(directory: Path, cfg: RunConfig, stored: dict | None) ->
         keys = set(now.get(table, {})) | set(stored.get(table, {}))
         for key in sorted(keys):
             dotted = f"{table}.{key}"
-            old, new = stored.get(table, {}).get(key), now.get(table, {}).get(key)
+            schema_key = SCHEMA.get(table, {}).get(key)
+            default = None if schema_key is None else schema_key.default
+            old = stored.get(table, {}).get(key, default)
+            new = now.get(table, {}).get(key)
             if dotted not in RESUMABLE_KEYS and old != new:
                 changed.append(f"{dotted} ({old!r} -> {new!r})")
     if changed:

@@ -54,7 +54,9 @@ def write_checkpoint(path, state: dict) -> None:
     path : path
     state : dict
         ``positions``, ``time``, ``step``, ``evaluations``, ``integrator`` (name),
-        ``integrator_state`` (dict), ``counters`` (dict), and optionally ``velocity``.
+        ``integrator_state`` (dict), ``counters`` (dict), and optionally ``velocity``;
+        the plugin engine adds ``engine`` (``"plugin"``) and ``openmm_checkpoint`` (the bytes
+        of ``Context.createCheckpoint()``).
     """
     payload = {
         "positions": np.asarray(state["positions"], dtype=np.float64),
@@ -67,6 +69,9 @@ def write_checkpoint(path, state: dict) -> None:
     }
     if state.get("velocity") is not None:
         payload["velocity"] = np.asarray(state["velocity"], dtype=np.float64)
+    if state.get("openmm_checkpoint") is not None:
+        payload["engine"] = np.array(state["engine"])
+        payload["openmm_checkpoint"] = np.frombuffer(state["openmm_checkpoint"], dtype=np.uint8)
     write_atomic(Path(path), lambda fh: np.savez(fh, **payload))
 
 
@@ -78,7 +83,8 @@ def read_checkpoint(path) -> dict:
     dict
         ``positions`` (n_beads, 3) float64, ``time``, ``step``, ``evaluations``,
         ``integrator`` (name), ``integrator_state`` (dict), ``counters`` (dict) and
-        ``velocity`` (n_beads, 3) or None.
+        ``velocity`` (n_beads, 3) or None; ``engine`` (``"python"`` when the file does not
+        say) and ``openmm_checkpoint`` (bytes, or None).
     """
     path = Path(path)
     if not path.exists():
@@ -98,6 +104,9 @@ def read_checkpoint(path) -> dict:
                 "counters": json.loads(str(data["counters"])),
                 "velocity": (np.array(data["velocity"], dtype=np.float64)
                              if "velocity" in data.files else None),
+                "engine": str(data["engine"]) if "engine" in data.files else "python",
+                "openmm_checkpoint": (data["openmm_checkpoint"].tobytes()
+                                      if "openmm_checkpoint" in data.files else None),
             }
     except Exception as exc:  # noqa: BLE001 - any damage means the same to the user
         raise TrajectoryFileError(

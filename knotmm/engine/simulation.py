@@ -38,6 +38,7 @@ from openmm import unit
 from knotmm.dynamics.deterministic import RK23, Integrator, StepSizeUnderflow
 from knotmm.dynamics.mobility import rpy_velocities
 from knotmm.engine.checkpoint import read_checkpoint, write_checkpoint
+from knotmm.engine.engines import PLUGIN, PYTHON, resolve_engine
 from knotmm.engine.interrupt import raise_if_requested
 from knotmm.errors import ConfigError, SimulationFault, TrajectoryFileError
 from knotmm.model.system import FORCE_GROUPS, ChainModel, chain_system, site_positions
@@ -96,8 +97,13 @@ class Simulation:
     max_bond_length : float
         A bond longer than this (in d) stops the run with :class:`SimulationFault`.
     mobility_threads : int
-        Threads of the RPY pair loop (:func:`knotmm.dynamics.mobility.rpy_velocities`); the
-        trajectory does not depend on it.
+        Threads of the RPY pair loop (:func:`knotmm.dynamics.mobility.rpy_velocities`, or the
+        plugin's); the trajectory does not depend on it.
+    engine : {"python", "plugin"}
+        Who takes the steps: ``integrator`` from Python, or the compiled
+        :class:`knotmm.plugin.RPYIntegrator` with its settings, which takes every step up to
+        the next report time in C++ (:mod:`knotmm.engine.plugin_engine`); resolve
+        ``run.engine`` with :func:`knotmm.engine.engines.resolve_engine`.
 
     Attributes
     ----------
@@ -108,6 +114,8 @@ class Simulation:
         Accepted integrator steps so far (OpenMM's name, so OpenMM reporters work).
     n_evaluations : int
         Velocity (force + mobility) evaluations so far.
+    engine : str
+        ``"python"`` or ``"plugin"``.
     """
 
     def __init__(
@@ -119,6 +127,7 @@ class Simulation:
         threads: int = 1,
         max_bond_length: float = 3.0,
         mobility_threads: int = 1,
+        engine: str = PYTHON,
     ):
         pos = np.array(positions, dtype=np.float64)
         self.mobility_threads = int(mobility_threads)
@@ -127,9 +136,19 @@ class Simulation:
         self.topology = bead_topology(pos.shape[0])
         self.integrator = RK23(0.01) if integrator is None else integrator
         plat, props = select_platform(platform, pos.shape[0], threads)
-        # The OpenMM integrator is never stepped: knotmm integrates. It holds the step size
-        # that OpenMM reporters may read.
-        self._openmm_integrator = openmm.VerletIntegrator(self.integrator.timestep)
+        if engine not in (PYTHON, PLUGIN):
+            raise ConfigError(f"engine = {engine!r}: expected {PYTHON!r} or {PLUGIN!r}")
+        self.engine = engine
+        self._plugin = None
+        if engine == PLUGIN:
+            from knotmm.engine.plugin_engine import PluginEngine
+
+            self._plugin = PluginEngine(self.integrator, threads=self.mobility_threads)
+            self._openmm_integrator = self._plugin.rpy
+        else:
+            # The OpenMM integrator is never stepped: knotmm integrates. It holds the step
+            # size that OpenMM reporters may read.
+            self._openmm_integrator = openmm.VerletIntegrator(self.integrator.timestep)
         self.context = openmm.Context(self.system, self._openmm_integrator, plat, props)
         self.platform_name = plat.getName()
         self.positions = pos
@@ -146,7 +165,7 @@ class Simulation:
         self._sync_context()
 
     @classmethod
-    def from_config(cls, cfg, positions=None) -> Simulation:
+    def from_config(cls, cfg, positions=None, engine: str | None = None) -> Simulation:
         """The Simulation a run configuration describes.
 
         Parameters
@@ -156,6 +175,10 @@ class Simulation:
         positions : array_like, shape (n_beads, 3), in d, optional
             Starting positions; default: the template of ``cfg`` (``[knot]``), built by
             :func:`knotmm.shapes.builder.build_template`.
+        engine : {"python", "plugin"}, optional
+            The engine to use; default: ``run.engine`` resolved by
+            :func:`knotmm.engine.engines.resolve_engine` (``"plugin"`` without the plugin
+            warns once and gives the Python engine).
 
         Raises
         ------
@@ -169,6 +192,11 @@ class Simulation:
             from knotmm.shapes.builder import build_template
 
             positions = build_template(cfg).positions
+        if engine is None:
+            platform, _ = select_platform(cfg["run.platform"], np.shape(positions)[0],
+                                          cfg["run.threads"])
+            engine = resolve_engine(cfg["run.engine"], integrator.name, cfg["run.peclet"],
+                                    platform.getName())
         return cls(
             positions,
             ChainModel.from_config(cfg),
@@ -177,6 +205,7 @@ class Simulation:
             threads=cfg["run.threads"],
             max_bond_length=cfg["run.max_bond_length"],
             mobility_threads=cfg["run.mobility_threads"],
+            engine=engine,
         )
 
     # -- checkpoints (OpenMM's names) -------------------------------------------------------
@@ -186,8 +215,12 @@ class Simulation:
         The file holds positions, time, step, velocity evaluations, the integrator's name
         and state (step size, controller memory, random state) and the velocity it holds
         for the current positions, if any. ``extra`` (a dict of JSON values: a run's output
-        counters, ...) rides along and is returned by :meth:`loadCheckpoint`.
+        counters, ...) rides along and is returned by :meth:`loadCheckpoint`. The plugin
+        engine adds its name and the Context's checkpoint (``Context.createCheckpoint``:
+        the plugin's step size, counters, cached velocity and noise stream).
         """
+        plugin = {} if self._plugin is None else {
+            "engine": self.engine, "openmm_checkpoint": self._plugin.checkpoint(self)}
         write_checkpoint(path, {
             "positions": self.positions,
             "time": self.time,
@@ -197,6 +230,7 @@ class Simulation:
             "integrator_state": self.integrator.get_state(),
             "counters": extra or {},
             "velocity": self._held_velocity(),
+            **plugin,
         })
 
     def loadCheckpoint(self, path) -> dict:  # noqa: N802
@@ -208,10 +242,16 @@ class Simulation:
         Raises
         ------
         TrajectoryFileError
-            The file is missing or damaged, or it was written for another integrator or
-            bead count.
+            The file is missing or damaged, or it was written for another integrator, bead
+            count or engine.
         """
         state = read_checkpoint(path)
+        if state["engine"] != self.engine:
+            raise TrajectoryFileError(
+                f"checkpoint {str(path)!r} was written by the {state['engine']} engine, this "
+                f"simulation uses the {self.engine} engine (run.engine); the files do not "
+                f"belong together"
+            )
         if state["integrator"] != self.integrator.name:
             raise TrajectoryFileError(
                 f"checkpoint {str(path)!r} was written by integrator {state['integrator']!r}, "
@@ -232,6 +272,8 @@ class Simulation:
         self.time = state["time"]
         self.currentStep = state["step"]
         self.n_evaluations = state["evaluations"]
+        if self._plugin is not None:
+            self._plugin.restore(self, state["openmm_checkpoint"])
         self._sync_context()
         return state["counters"]
 
@@ -309,16 +351,21 @@ class Simulation:
         self.context.setStepCount(self.currentStep)
 
     # -- stepping ---------------------------------------------------------------------------
+    def _underflow_fault(self, timestep: float, reason: str) -> SimulationFault:
+        return SimulationFault(
+            f"the adaptive step fell to {timestep:.3g} tau_d (below run.min_timestep) "
+            f"at t = {self.time:.6g} tau_d (step {self.currentStep}): {reason}. "
+            f"Hint: the forces are too stiff here (beads pressed together?); the last good "
+            f"state is kept"
+        )
+
     def _advance(self, max_dt: float) -> float:
+        if self._plugin is not None:
+            return self._plugin.advance_one(self, self.time + max_dt)
         try:
             y_new, dt = self.integrator.step(self.velocity, self.positions, max_dt)
         except StepSizeUnderflow as exc:
-            raise SimulationFault(
-                f"the adaptive step fell to {exc.timestep:.3g} tau_d (below run.min_timestep) "
-                f"at t = {self.time:.6g} tau_d (step {self.currentStep}): {exc.reason}. "
-                f"Hint: the forces are too stiff here (beads pressed together?); the last good "
-                f"state is kept"
-            ) from None
+            raise self._underflow_fault(exc.timestep, exc.reason) from None
         try:
             self._check_state(y_new, dt=dt)
         except SimulationFault:
@@ -400,7 +447,10 @@ class Simulation:
                 # Here every report due at the current time has been made: a stop asked
                 # for by a signal (knotmm.engine.interrupt) leaves a whole state to checkpoint.
                 raise_if_requested()
-                self._advance(remaining)
+                if self._plugin is not None and step_target == math.inf:
+                    self._plugin.advance_to(self, time_target)  # every step to the report
+                else:
+                    self._advance(remaining)
                 if abs(time_target - self.time) <= _slack(time_target):
                     self.time = time_target
                     break

@@ -29,13 +29,15 @@ forces to the beads.
 
 The compiled module may be missing (a source checkout that was never built): importing this
 package never fails; :func:`available` says whether the plugin loaded and :func:`load_error`
-why not, so callers can fall back to the Python engine.
+why not, so callers can fall back to the Python engine. The environment variable
+``KNOTMM_NO_PLUGIN=1`` makes it unavailable on purpose (to test or compare the fallback).
 """
 
 from __future__ import annotations
 
 import importlib
 import logging
+import os
 
 import openmm  # loads libOpenMM.so and OpenMM's platforms before the plugin library
 import openmm.version
@@ -69,6 +71,8 @@ class PluginUnavailableError(ImportError):
 
 _load_error: str | None = None
 try:
+    if os.environ.get("KNOTMM_NO_PLUGIN", "") not in ("", "0"):
+        raise ImportError("switched off by the environment variable KNOTMM_NO_PLUGIN")
     _rpy = importlib.import_module(".rpyplugin", __name__)
 except ImportError as exc:  # not built, or libOpenMM.so / ABI mismatch
     _rpy = None

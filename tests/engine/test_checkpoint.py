@@ -30,7 +30,9 @@ CONFIGS = {
 
 
 def _sim(name, positions=None):
-    return Simulation.from_config(RunConfig.from_dict(CONFIGS[name]), positions)
+    # the Python engine's own state (held velocity, Python noise stream); the plugin
+    # engine's checkpoints: tests/engine/test_engine_choice.py
+    return Simulation.from_config(RunConfig.from_dict(CONFIGS[name]), positions, engine="python")
 
 
 @pytest.mark.parametrize("name", sorted(CONFIGS))
