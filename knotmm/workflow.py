@@ -175,6 +175,7 @@ def run(
     name, timestep = resolve_stepping(cfg)  # run.toml records what is used, not "auto"
     cfg = cfg.replace({"run.integrator": name, "run.timestep": timestep})
     integrator_from_config(cfg)  # checks the integrator against run.peclet before the template
+    _check_stop_on_change(cfg)
     template = build_template(cfg)
     if template.resolved:
         cfg = cfg.replace(template.resolved)
@@ -475,6 +476,19 @@ def _signals_held():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
         for sig in pending:
             signal.raise_signal(sig)
+
+
+def _check_stop_on_change(cfg) -> None:
+    """A run asked to stop at a change of knot type must be able to see one."""
+    from knotmm.knots.identify import topoly_available
+
+    if (cfg["run.on_topology_change"] == "stop" and cfg["run.topology_check_interval"] > 0
+            and not topoly_available()):
+        raise ConfigError(
+            'run.on_topology_change = "stop" needs knot-type checks, and topoly is not '
+            "installed: pip install 'knotmm[knots]', or set run.on_topology_change = \"warn\" "
+            "(or run.topology_check_interval = 0) to run unchecked"
+        )
 
 
 def _knot_watch(sim, cfg, facts, counters, resuming):

@@ -347,3 +347,19 @@ def test_signals_wait_for_the_last_run_toml_write():
         assert seen == [signal.SIGTERM]
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def test_stop_on_change_without_topoly_is_refused(tmp_path, monkeypatch, capsys):
+    """Issue 11, item 9: a stop request that cannot be honoured is an error, not dropped."""
+    import knotmm.knots.identify
+
+    monkeypatch.setattr(knotmm.knots.identify, "topoly_available", lambda: False)
+    directory = tmp_path / "run"
+    args = ["run", "--beads", "40", "--duration", "1", "--no-progress", "--out", str(directory),
+            "--set", 'run.on_topology_change="stop"']
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "on_topology_change" in err[0] and "topoly" in err[0], err
+    assert not directory.exists()
+    # "warn" still runs unchecked
+    assert main(args[:-1] + ['run.on_topology_change="warn"']) == 0
