@@ -161,12 +161,14 @@ def mobility(x, f, v):
             dz = x[i, 2] - x[j, 2]
             r2 = dx * dx + dy * dy + dz * dz
             r = math.sqrt(r2)
+            inv = 1.0 / r  # one division per pair
+            inv2 = inv * inv
             if r >= 1.0:
-                a = 0.375 / r * (1.0 + 1.0 / (6.0 * r2))
-                b = 0.375 / r * (1.0 - 0.5 / r2) / r2  # times the unnormalised dx dx^T
+                a = 0.375 * inv * (1.0 + inv2 / 6.0)
+                b = 0.375 * inv * (1.0 - 0.5 * inv2) * inv2  # times the unnormalised dx dx^T
             else:
                 a = 1.0 - 0.5625 * r
-                b = 0.1875 / r
+                b = 0.1875 * inv
             dfj = b * (dx * f[j, 0] + dy * f[j, 1] + dz * f[j, 2])
             dfi = b * (dx * f[i, 0] + dy * f[i, 1] + dz * f[i, 2])
             v[i, 0] += a * f[j, 0] + dfj * dx
