@@ -38,6 +38,8 @@ from __future__ import annotations
 import importlib
 import logging
 import os
+import sys
+from pathlib import Path
 
 import openmm  # loads libOpenMM.so and OpenMM's platforms before the plugin library
 import openmm.version
@@ -68,6 +70,29 @@ METHODS = {
 class PluginUnavailableError(ImportError):
     """The compiled plugin is not built or could not be loaded (see :func:`load_error`)."""
 
+
+
+
+def _installed_build() -> list[str]:
+    """The folder of an installed knotmm's compiled plugin, when this copy has none.
+
+    A source checkout that comes first on ``sys.path`` (``python -m pytest`` run in it, as
+    the README says) shadows the installed package, whose ``knotmm/plugin/`` holds the files
+    that ``pip install .`` compiled from that checkout; the package then loads them from
+    there, so tests in a checkout exercise the build.
+    """
+    here = Path(__file__).resolve().parent
+    if any(here.glob("_rpyplugin*")):
+        return []
+    for entry in sys.path:
+        candidate = (Path(entry or ".") / "knotmm" / "plugin").resolve()
+        if (candidate != here and (candidate / "rpyplugin.py").is_file()
+                and any(candidate.glob("_rpyplugin*"))):
+            return [str(candidate)]
+    return []
+
+
+__path__.extend(_installed_build())  # noqa: F821 - a package's own __path__
 
 _load_error: str | None = None
 try:
