@@ -2,6 +2,9 @@
 
 import sys
 
-from knotmm.cli.main import console_main
+try:
+    from knotmm.cli.main import console_main
+except KeyboardInterrupt:  # Ctrl-C while the command line is still importing
+    sys.exit(130)
 
 sys.exit(console_main())

@@ -69,7 +69,11 @@ def console_main() -> int:
     """
     import signal
 
-    code = main()
+    try:
+        code = main()
+    except KeyboardInterrupt:  # a signal between two of main's handlers
+        print("knotmm: interrupted", file=sys.stderr)
+        code = 130
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if code == 130:
@@ -85,8 +89,12 @@ def console_main() -> int:
 
 
 def _dispatch(argv: list[str] | None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    try:  # the sub-commands' imports take a second: a stop asked for then is no traceback
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        print("knotmm: interrupted while starting; nothing was written", file=sys.stderr)
+        return 130
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="knotmm: %(message)s",
