@@ -30,6 +30,7 @@ import numpy as np
 import openmm
 from openmm import unit
 
+from knotmm.engine.openmm_state import state_array
 from knotmm.errors import SimulationFault
 
 __all__ = ["PluginEngine"]
@@ -75,12 +76,7 @@ class PluginEngine:
     def _read(sim) -> tuple[np.ndarray, float]:
         """Bead positions, shape (n_beads, 3), float64 in d, and the time (tau_d)."""
         state = sim.context.getState(getPositions=True)
-        n = sim.system.getNumParticles()
-        out = np.empty((n, 3))
-        try:
-            state._getVectorAsNumpy(openmm.State.Positions, out)
-        except (TypeError, AttributeError, ValueError):  # a future OpenMM without it
-            out = np.array(state.getPositions(asNumpy=True).value_in_unit(unit.nanometer))
+        out = state_array(state, "positions", sim.system.getNumParticles())
         return out[: sim.n_beads].copy(), state.getTime().value_in_unit(unit.picosecond)
 
     def _count(self, sim, before, steps: bool = True) -> None:

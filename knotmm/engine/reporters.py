@@ -32,7 +32,25 @@ __all__ = [
 ]
 
 
-class DCDReporter(TimeScheduled):
+class _FileReporter(TimeScheduled):
+    """A reporter appending to one file (``self._file``, ``self.path``), flushed per report."""
+
+    def _written(self, write) -> None:
+        """Call ``write()``, flush, and advance; an OSError (a full disk) names the file."""
+        try:
+            write()
+            self._file.flush()
+        except OSError as exc:
+            exc.filename = exc.filename or self.path
+            raise
+        self.advance()
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._file.close()
+
+
+class DCDReporter(_FileReporter):
     """Write frames to a DCD file in Angstrom (1 d = 10 A), without a unit cell.
 
     Frame ``k`` is the state at ``t = k * interval``. Uses OpenMM's ``DCDFile``, which can
@@ -63,20 +81,10 @@ class DCDReporter(TimeScheduled):
         )
 
     def report(self, simulation, state) -> None:
-        try:
-            self._dcd.writeModel(simulation.positions * unit.nanometer)
-            self._file.flush()
-        except OSError as exc:  # a full disk: say which file
-            exc.filename = exc.filename or self.path
-            raise
-        self.advance()
-
-    def close(self) -> None:
-        if not self._file.closed:
-            self._file.close()
+        self._written(lambda: self._dcd.writeModel(simulation.positions * unit.nanometer))
 
 
-class ObservablesReporter(TimeScheduled):
+class ObservablesReporter(_FileReporter):
     """Append a row of :data:`OBSERVABLE_COLUMNS` to a CSV file at every report time."""
 
     def __init__(self, path, interval, append=False, first_index=0):
@@ -108,17 +116,7 @@ class ObservablesReporter(TimeScheduled):
             f"{timestep:.6g}",
             simulation.n_evaluations,
         ]
-        try:
-            self._writer.writerow(row)
-            self._file.flush()
-        except OSError as exc:
-            exc.filename = exc.filename or self.path
-            raise
-        self.advance()
-
-    def close(self) -> None:
-        if not self._file.closed:
-            self._file.close()
+        self._written(lambda: self._writer.writerow(row))
 
 
 class ProgressReporter(TimeScheduled):

@@ -40,6 +40,7 @@ from knotmm.dynamics.mobility import rpy_velocities
 from knotmm.engine.checkpoint import read_checkpoint, write_checkpoint
 from knotmm.engine.engines import PLUGIN, PYTHON, resolve_engine
 from knotmm.engine.interrupt import raise_if_requested
+from knotmm.engine.openmm_state import state_array
 from knotmm.errors import ConfigError, SimulationFault, TrajectoryFileError
 from knotmm.model.system import FORCE_GROUPS, ChainModel, chain_system, site_positions
 from knotmm.model.topology import bead_topology, ring_bonds
@@ -290,7 +291,7 @@ class Simulation:
             shifted = site_positions(shifted, self.model)
         self.context.setPositions(shifted)
         state = self.context.getState(getForces=True)
-        forces = _state_forces(state, shifted.shape[0])
+        forces = state_array(state, "forces", shifted.shape[0])
         # forces on midpoint sites are already distributed onto their beads by OpenMM
         return forces[: self.n_beads] if self.model.segment_repulsion else forces
 
@@ -488,27 +489,6 @@ class Simulation:
             )
         for r in reporters:
             r.report(self, state)
-
-
-def _state_forces(state, n_particles: int) -> np.ndarray:
-    """Forces of an OpenMM State as a float64 array in kJ/mol/nm (= F0), shape (n, 3).
-
-    ``State.getForces(asNumpy=True)`` wraps the array in a unit Quantity after a ``dir()``
-    look-up, about 35 microseconds a call: a fifth of a whole velocity evaluation at N = 90.
-    The State's own array copy (the method ``getForces`` uses inside) skips that; if a
-    future OpenMM lacks it, the public call is used.
-    """
-    fill = getattr(state, "_getVectorAsNumpy", None)
-    if fill is not None:
-        out = np.empty((n_particles, 3))
-        try:
-            fill(openmm.State.Forces, out)
-            return out
-        except (TypeError, AttributeError, ValueError):
-            pass
-    return state.getForces(asNumpy=True).value_in_unit(
-        unit.kilojoule_per_mole / unit.nanometer
-    )
 
 
 def _slack(t: float) -> float:
