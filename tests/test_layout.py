@@ -28,6 +28,7 @@ LAYERS = [
     {"engine"},
     {"workflow"},
     {"analysis"},
+    {"orbit"},
     {"sweep"},
     {"movie"},
     {"cli"},

@@ -17,7 +17,7 @@ from knotmm import __version__
 from knotmm.errors import KnotmmError
 
 #: Sub-command name -> module under knotmm.cli.
-COMMANDS = ("run", "template", "analyze", "sweep", "movie")
+COMMANDS = ("run", "template", "analyze", "orbit", "sweep", "movie")
 
 
 def build_parser() -> argparse.ArgumentParser:

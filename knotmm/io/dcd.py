@@ -24,7 +24,7 @@ import numpy as np
 
 from knotmm.errors import TrajectoryFileError
 
-__all__ = ["DCDLayout", "dcd_layout", "quiet_c_stdout", "read_dcd", "truncate_dcd"]
+__all__ = ["DCDLayout", "dcd_layout", "quiet_c_stdout", "read_dcd", "truncate_dcd", "write_dcd"]
 
 #: Bytes of one unit-cell record (4-byte marker, six float64, 4-byte marker).
 _CELL_BYTES = 56
@@ -197,3 +197,37 @@ def read_dcd(path) -> tuple[np.ndarray, list[str]]:
             "the partial frame was dropped"
         )
     return np.asarray(xyz), notes
+
+
+def write_dcd(path, positions) -> None:
+    """Write frames to a new DCD file in Angstrom (1 d = 10 A), without a unit cell.
+
+    Parameters
+    ----------
+    path : str or Path
+        File to write (replaced atomically).
+    positions : array_like, shape (n_frames, n_beads, 3), in d
+
+    Raises
+    ------
+    OSError
+        If the file cannot be written.
+    """
+    from mdtraj.formats import DCDTrajectoryFile
+
+    from knotmm.units import d_to_angstrom
+
+    path = Path(path)
+    x = np.asarray(positions, dtype=np.float64)
+    if x.ndim != 3 or x.shape[-1] != 3:
+        raise ValueError(f"positions: expected shape (n_frames, n_beads, 3), got {x.shape}")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".dcd")
+    os.close(fd)
+    try:
+        os.unlink(tmp)  # mdtraj refuses to overwrite
+        with quiet_c_stdout(), DCDTrajectoryFile(tmp, "w") as fh:
+            fh.write(d_to_angstrom(x).astype(np.float32))
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)

@@ -1,0 +1,329 @@
+"""Following an orbit along a parameter, and where its stability changes.
+
+A model parameter ``p`` (a float key of ``[model]``, e.g. ``model.bending_stiffness``) is
+followed by **pseudo-arclength continuation**: the unknowns are ``U = (x, T, theta, p)``;
+from the last two points the secant ``tau = (U_1 - U_0) / |U_1 - U_0|`` predicts
+``U_pred = U_1 + ds tau``, and Newton solves the orbit condition of
+:mod:`knotmm.orbit.shooting` together with ``<U - U_pred, tau> = 0``, so the branch can be
+followed through a fold where ``p`` turns back. ``dr/dp`` comes from a flow map built at
+``p + dp`` (one more integration per Newton step). The first step is a plain step in ``p``.
+
+``knot.beads`` is not continuous: each point is a new orbit, started from the previous one
+resampled to the new number of beads (the ring stretched by ``N'/N`` so bonds keep their
+length), its period scaled by ``N'/N`` and sharpened as for a run.
+
+At each point the leading Floquet multipliers are computed. Between two points where the
+number of multipliers outside the unit circle changes, the crossing is reported with its
+kind: a real multiplier through ``+1`` (fold or pitchfork), through ``-1`` (period
+doubling), a complex pair (Neimark-Sacker: a torus, quasi-periodic motion), with the
+parameter value interpolated linearly in ``|mu| - 1``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.sparse.linalg import LinearOperator, gmres
+
+from knotmm.errors import ConfigError, SimulationFault
+from knotmm.orbit.flow import centre, rms, rotate_z, rotation_generator
+from knotmm.orbit.shooting import MAX_MOVE, Orbit, residual, solve_orbit
+
+__all__ = ["ContinuationPoint", "Bifurcation", "parse_range", "continue_orbit",
+           "find_bifurcations"]
+
+log = logging.getLogger(__name__)
+
+#: Keys that can be followed (``knot.beads`` step by step, the others by arclength).
+CONTINUOUS_KEYS = ("model.bending_stiffness", "model.bond_stiffness", "model.gravity",
+                   "model.steric_epsilon", "model.steric_sigma", "model.bond_length")
+DISCRETE_KEYS = ("knot.beads",)
+
+
+@dataclass
+class ContinuationPoint:
+    """One point of a branch.
+
+    Attributes
+    ----------
+    value : float
+        The parameter.
+    orbit : knotmm.orbit.shooting.Orbit
+    floquet : knotmm.orbit.floquet.FloquetResult or None
+    """
+
+    value: float
+    orbit: Orbit
+    floquet: object = None
+
+    @property
+    def moduli(self) -> np.ndarray:
+        return np.array([]) if self.floquet is None else np.abs(self.floquet.multipliers)
+
+
+@dataclass
+class Bifurcation:
+    """A multiplier crossing the unit circle between two points of the branch."""
+
+    between: tuple
+    value: float
+    kind: str
+    multiplier: complex
+    notes: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return {"between": list(self.between), "parameter": self.value, "kind": self.kind,
+                "multiplier_after": [self.multiplier.real, self.multiplier.imag]}
+
+
+def parse_range(text: str) -> tuple[str, float, float]:
+    """``"model.bending_stiffness=5:500"`` -> ``("model.bending_stiffness", 5.0, 500.0)``."""
+    key, sep, span = str(text).partition("=")
+    start, colon, stop = span.partition(":")
+    known = CONTINUOUS_KEYS + DISCRETE_KEYS
+    if not sep or not colon:
+        raise ConfigError(
+            f"--continue {text!r}: expected KEY=START:STOP, e.g. model.bending_stiffness=5:500"
+        )
+    if key.strip() not in known:
+        raise ConfigError(f"--continue {text!r}: {key.strip()!r} cannot be followed; expected "
+                          f"one of {', '.join(known)}")
+    try:
+        a, b = float(start), float(stop)
+    except ValueError:
+        raise ConfigError(f"--continue {text!r}: START and STOP must be numbers") from None
+    if not (math.isfinite(a) and math.isfinite(b)) or a == b:
+        raise ConfigError(f"--continue {text!r}: START and STOP must be finite and differ")
+    return key.strip(), a, b
+
+
+def _model(cfg, key: str, value: float):
+    from knotmm.model.parameters import ChainModel
+
+    return ChainModel.from_config(cfg.replace({key: value}))
+
+
+def resample_ring(x: np.ndarray, n_new: int) -> np.ndarray:
+    """A closed chain resampled to ``n_new`` beads, stretched by ``n_new / n`` (centred).
+
+    Linear interpolation along the ring by arclength; shape (n_new, 3), in d.
+    """
+    n = x.shape[0]
+    closed = np.vstack([x, x[:1]])
+    seg = np.linalg.norm(np.diff(closed, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    targets = np.linspace(0.0, s[-1], n_new, endpoint=False)
+    out = np.column_stack([np.interp(targets, s, closed[:, k]) for k in range(3)])
+    c = out.mean(axis=0)
+    return (out - c) * (n_new / n)
+
+
+def _arclength_newton(make_flow, cfg, key, u1, tangent, ds, scale, tolerance,
+                      max_iterations=15, gmres_tolerance=1e-4):
+    """Solve the orbit condition plus ``<U - U_pred, tau> = 0``; return (Orbit, value) or None."""
+    x1, t1, th1, p1 = u1
+    n3 = x1.size
+    pred = np.concatenate([x1.ravel(), [t1, th1, p1]]) + ds * tangent / scale
+    x = pred[:n3].reshape(x1.shape)
+    period, rotation, value = pred[n3], pred[n3 + 1], pred[n3 + 2]
+    history = []
+    for it in range(1, max_iterations + 1):
+        flow = make_flow(_model(cfg, key, value), x)
+        r, end = residual(flow, x, period, rotation)
+        arc = float((np.concatenate([x.ravel(), [period, rotation, value]]) - pred) * scale
+                    @ tangent)
+        res = rms(r)
+        history.append(res)
+        if res <= tolerance and abs(arc) <= 1e-6:
+            orbit = Orbit(x, period, rotation, end.mean(axis=0) - x.mean(axis=0), res, True,
+                          it - 1, history, "converged", flow.n_flows)
+            return orbit, value, flow
+        dp = 1e-6 * max(1.0, abs(value))
+        r_p, _ = residual(make_flow(_model(cfg, key, value + dp), x), x, period, rotation)
+        col_p = ((r_p - r) / dp).ravel()
+        col_t = rotate_z(centre(flow.velocity(end)), -rotation).ravel()
+        col_th = -rotation_generator(rotate_z(centre(end), -rotation)).ravel()
+        phase = centre(flow.velocity(x)).ravel()
+        phase /= np.linalg.norm(phase)
+        spin = rotation_generator(x).ravel()
+        spin /= np.linalg.norm(spin)
+        tw = tangent * scale
+
+        def matvec(du, x=x, end=end, flow=flow, period=period, rotation=rotation,
+                   col_p=col_p, col_t=col_t, col_th=col_th, phase=phase, spin=spin, tw=tw):
+            du = np.asarray(du, dtype=float).ravel()
+            dx = du[:n3]
+            jv = flow.jvp(x, period, end, dx)
+            top = (rotate_z(centre(jv), -rotation).ravel() - dx + col_t * du[n3]
+                   + col_th * du[n3 + 1] + col_p * du[n3 + 2])
+            return np.concatenate([top, [phase @ dx, spin @ dx, tw @ du]])
+
+        op = LinearOperator((n3 + 3, n3 + 3), matvec=matvec, dtype=float)
+        rhs = np.concatenate([-r.ravel(), [0.0, 0.0, -arc]])
+        du, _ = gmres(op, rhs, rtol=gmres_tolerance, atol=0.0, restart=200, maxiter=1)
+        largest = float(np.max(np.linalg.norm(du[:n3].reshape(x.shape), axis=1)))
+        step = min(1.0, MAX_MOVE / largest) if largest > 0 else 1.0
+        x = x + step * du[:n3].reshape(x.shape)
+        period += step * du[n3]
+        rotation += step * du[n3 + 1]
+        value += step * du[n3 + 2]
+        if not period > 0:
+            return None
+    return None
+
+
+def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
+                   tolerance=1e-8, floquet_fn=None, on_point=None):
+    """Follow ``orbit`` (converged at ``cfg``) from ``key = start`` to ``stop``.
+
+    Parameters
+    ----------
+    orbit : Orbit
+        A converged orbit (a guess for the first point, at ``key = start``).
+    cfg : knotmm.config.RunConfig
+        The run's configuration.
+    key : str
+        See :data:`CONTINUOUS_KEYS`, :data:`DISCRETE_KEYS`.
+    start, stop : float
+    make_flow : callable
+        ``make_flow(model, positions) -> FlowMap``.
+    points : int
+        Points asked for along ``start .. stop`` (the arclength step is set from it).
+    modes : int
+        Floquet multipliers per point (0: none).
+    tolerance : float
+        Newton's residual, d rms per bead.
+    floquet_fn : callable, optional
+        ``floquet_fn(flow, orbit, k)``; default :func:`knotmm.orbit.floquet.floquet`.
+    on_point : callable, optional
+        Called with each new :class:`ContinuationPoint` (progress, partial output).
+
+    Returns
+    -------
+    list of ContinuationPoint
+        In the order found; stops at ``stop``, at a failed Newton solve, or after
+        ``3 * points`` points.
+    """
+    from knotmm.orbit.floquet import floquet as default_floquet
+
+    floquet_fn = floquet_fn or default_floquet
+    if points < 2:
+        raise ConfigError(f"--points {points!r}: need at least 2")
+    branch: list[ContinuationPoint] = []
+
+    def add(value, orb, flow):
+        res = floquet_fn(flow, orb, min(modes, orb.positions.size - 8)) if modes else None
+        point = ContinuationPoint(float(value), orb, res)
+        branch.append(point)
+        if on_point is not None:
+            on_point(point)
+
+    discrete = key in DISCRETE_KEYS
+    values = np.linspace(start, stop, points)
+    if discrete:
+        values = np.unique(np.round(values).astype(int))
+    first = values[0]
+    current = orbit
+    step_p = values[1] - values[0]
+    if discrete:
+        for value in values:
+            found = _orbit_at_beads(current, cfg, int(value), make_flow, tolerance)
+            if found is None:
+                break
+            current, flow = found
+            add(value, current, flow)
+        return branch
+    flow = make_flow(_model(cfg, key, first), current.positions)
+    current = solve_orbit(flow, current.positions, current.period, current.rotation,
+                          tolerance=tolerance)
+    if not current.converged:
+        return branch
+    add(first, current, flow)
+    flow = make_flow(_model(cfg, key, first + step_p), current.positions)
+    nxt = solve_orbit(flow, current.positions, current.period, current.rotation,
+                      tolerance=tolerance)
+    if not nxt.converged:
+        return branch
+    add(first + step_p, nxt, flow)
+    direction = math.copysign(1.0, stop - start)
+    for _ in range(3 * points):
+        if (branch[-1].value - stop) * direction >= -1e-12 * max(1.0, abs(stop)):
+            break
+        a, b = branch[-2], branch[-1]
+        ua = np.concatenate([a.orbit.positions.ravel(), [a.orbit.period, a.orbit.rotation,
+                                                         a.value]])
+        ub = np.concatenate([b.orbit.positions.ravel(), [b.orbit.period, b.orbit.rotation,
+                                                         b.value]])
+        # scale each block so the parameter and the shape weigh alike in the arclength
+        scale = np.ones_like(ua)
+        scale[-1] = 1.0 / abs(step_p)
+        diff = (ub - ua) * scale
+        ds = float(np.linalg.norm(diff))
+        tangent = diff / ds
+        remaining = (stop - b.value) / (b.value - a.value) if b.value != a.value else 1.0
+        if 0 < remaining < 1:
+            ds *= remaining  # land near stop
+        found = _arclength_newton(
+            make_flow, cfg, key,
+            (b.orbit.positions, b.orbit.period, b.orbit.rotation, b.value),
+            tangent, ds, scale, tolerance)
+        if found is None:
+            log.info("continuation: Newton failed after %s = %g", key, b.value)
+            break
+        orb, value, flow = found
+        add(value, orb, flow)
+    return branch
+
+
+def _orbit_at_beads(orbit, cfg, n_new, make_flow, tolerance):
+    """(Orbit, FlowMap) at another number of beads, from ``orbit`` resampled; None if lost."""
+    from knotmm.model.parameters import ChainModel
+    from knotmm.orbit.start import refine_guess
+
+    n = orbit.positions.shape[0]
+    x = orbit.positions if n_new == n else resample_ring(orbit.positions, n_new)
+    model = ChainModel.from_config(cfg.replace({"knot.beads": int(n_new)}))
+    try:
+        flow = make_flow(model, x)
+        period, rotation = orbit.period, orbit.rotation
+        if n_new != n:
+            period, rotation, _ = refine_guess(flow, x, orbit.period * n_new / n)
+        found = solve_orbit(flow, x, period, rotation, tolerance=tolerance)
+    except SimulationFault:
+        return None
+    if not found.converged:
+        return None
+    return found, flow
+
+
+def find_bifurcations(branch) -> list[Bifurcation]:
+    """Crossings of the unit circle between consecutive points (see the module's text)."""
+    out = []
+    for a, b in zip(branch, branch[1:]):
+        if a.floquet is None or b.floquet is None:
+            continue
+        na, nb = a.floquet.n_unstable, b.floquet.n_unstable
+        if na == nb:
+            continue
+        mult = b.floquet.multipliers
+        # the multiplier that crossed: the one of b closest to the unit circle
+        k = int(np.argmin(np.abs(np.abs(mult) - 1.0)))
+        mu = complex(mult[k])
+        ma = np.abs(a.floquet.multipliers)
+        ka = int(np.argmin(np.abs(ma - 1.0)))
+        fa, fb = abs(ma[ka]) - 1.0, abs(mu) - 1.0
+        value = a.value + (b.value - a.value) * fa / (fa - fb) if fa != fb else b.value
+        if abs(mu.imag) > 1e-6 * abs(mu):
+            kind = (f"Neimark-Sacker (complex pair at angle +-{abs(math.atan2(mu.imag, mu.real)):.3g}"
+                    " rad: a torus, quasi-periodic motion)")
+        elif mu.real > 0:
+            kind = "fold or pitchfork (real multiplier through +1)"
+        else:
+            kind = "period doubling (real multiplier through -1)"
+        direction = "loses" if nb > na else "gains"
+        out.append(Bifurcation((a.value, b.value), float(value), kind, mu,
+                               [f"the orbit {direction} stability ({na} -> {nb} unstable)"]))
+    return out
