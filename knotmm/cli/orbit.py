@@ -35,8 +35,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    "model.bending_stiffness=5:500 or knot.beads=60:90")
     p.add_argument("--points", type=int, default=8, metavar="N",
                    help="points of the continuation between A and B (default 8)")
-    p.add_argument("--timestep", type=float, default=0.01, metavar="H",
-                   help="fixed step of the flow map in tau_d (default 0.01)")
+    p.add_argument("--timestep", type=float, metavar="H",
+                   help="fixed step of the flow map in tau_d (default: 0.01, smaller for "
+                   "stiffer chains so that Heun stays stable)")
     p.add_argument("--tolerance", type=float, default=1e-8, metavar="R",
                    help="Newton's residual in d rms per bead (default 1e-8)")
     p.add_argument("--engine", choices=("auto", "plugin", "python"), default="auto",

@@ -39,7 +39,7 @@ log = logging.getLogger(__name__)
 
 #: Keys that can be followed (``knot.beads`` step by step, the others by arclength).
 CONTINUOUS_KEYS = ("model.bending_stiffness", "model.bond_stiffness", "model.gravity",
-                   "model.steric_epsilon", "model.steric_sigma", "model.bond_length")
+                   "model.lj_epsilon", "model.lj_sigma", "model.bond_length")
 DISCRETE_KEYS = ("knot.beads",)
 
 
@@ -130,8 +130,10 @@ def _arclength_newton(make_flow, cfg, key, u1, tangent, ds, scale, tolerance,
     x = pred[:n3].reshape(x1.shape)
     period, rotation, value = pred[n3], pred[n3 + 1], pred[n3 + 2]
     history = []
+    step_h = None  # one fixed step for the whole solve: the map must not change under Newton
     for it in range(1, max_iterations + 1):
-        flow = make_flow(_model(cfg, key, value), x)
+        flow = make_flow(_model(cfg, key, value), x, step_h)
+        step_h = flow.timestep
         r, end = residual(flow, x, period, rotation)
         arc = float((np.concatenate([x.ravel(), [period, rotation, value]]) - pred) * scale
                     @ tangent)
@@ -139,10 +141,11 @@ def _arclength_newton(make_flow, cfg, key, u1, tangent, ds, scale, tolerance,
         history.append(res)
         if res <= tolerance and abs(arc) <= 1e-6:
             orbit = Orbit(x, period, rotation, end.mean(axis=0) - x.mean(axis=0), res, True,
-                          it - 1, history, "converged", flow.n_flows)
+                          it - 1, history, "converged", flow.n_flows, flow.timestep)
             return orbit, value, flow
         dp = 1e-6 * max(1.0, abs(value))
-        r_p, _ = residual(make_flow(_model(cfg, key, value + dp), x), x, period, rotation)
+        r_p, _ = residual(make_flow(_model(cfg, key, value + dp), x, step_h), x, period,
+                          rotation)
         col_p = ((r_p - r) / dp).ravel()
         col_t = rotate_z(centre(flow.velocity(end)), -rotation).ravel()
         col_th = -rotation_generator(rotate_z(centre(end), -rotation)).ravel()
@@ -189,7 +192,8 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
         See :data:`CONTINUOUS_KEYS`, :data:`DISCRETE_KEYS`.
     start, stop : float
     make_flow : callable
-        ``make_flow(model, positions) -> FlowMap``.
+        ``make_flow(model, positions, timestep=None) -> FlowMap`` (``None``: a stable step
+        chosen at ``positions``).
     points : int
         Points asked for along ``start .. stop`` (the arclength step is set from it).
     modes : int
@@ -236,18 +240,17 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
             current, flow = found
             add(value, current, flow)
         return branch
-    flow = make_flow(_model(cfg, key, first), current.positions)
-    current = solve_orbit(flow, current.positions, current.period, current.rotation,
-                          tolerance=tolerance)
-    if not current.converged:
-        return branch
-    add(first, current, flow)
-    flow = make_flow(_model(cfg, key, first + step_p), current.positions)
-    nxt = solve_orbit(flow, current.positions, current.period, current.rotation,
-                      tolerance=tolerance)
-    if not nxt.converged:
-        return branch
-    add(first + step_p, nxt, flow)
+    for value in (first, first + step_p):
+        try:
+            flow = make_flow(_model(cfg, key, value), current.positions)
+            current = solve_orbit(flow, current.positions, current.period, current.rotation,
+                                  tolerance=tolerance)
+        except SimulationFault as exc:
+            log.info("continuation: lost the orbit at %s = %g: %s", key, value, exc)
+            return branch
+        if not current.converged:
+            return branch
+        add(value, current, flow)
     direction = math.copysign(1.0, stop - start)
     for _ in range(3 * points):
         if (branch[-1].value - stop) * direction >= -1e-12 * max(1.0, abs(stop)):
@@ -266,10 +269,14 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
         remaining = (stop - b.value) / (b.value - a.value) if b.value != a.value else 1.0
         if 0 < remaining < 1:
             ds *= remaining  # land near stop
-        found = _arclength_newton(
-            make_flow, cfg, key,
-            (b.orbit.positions, b.orbit.period, b.orbit.rotation, b.value),
-            tangent, ds, scale, tolerance)
+        try:
+            found = _arclength_newton(
+                make_flow, cfg, key,
+                (b.orbit.positions, b.orbit.period, b.orbit.rotation, b.value),
+                tangent, ds, scale, tolerance)
+        except SimulationFault as exc:
+            log.info("continuation: the chain broke after %s = %g: %s", key, b.value, exc)
+            found = None
         if found is None:
             log.info("continuation: Newton failed after %s = %g", key, b.value)
             break
@@ -302,7 +309,7 @@ def _orbit_at_beads(orbit, cfg, n_new, make_flow, tolerance):
 def find_bifurcations(branch) -> list[Bifurcation]:
     """Crossings of the unit circle between consecutive points (see the module's text)."""
     out = []
-    for a, b in zip(branch, branch[1:]):
+    for a, b in zip(branch, branch[1:], strict=False):
         if a.floquet is None or b.floquet is None:
             continue
         na, nb = a.floquet.n_unstable, b.floquet.n_unstable
@@ -317,8 +324,9 @@ def find_bifurcations(branch) -> list[Bifurcation]:
         fa, fb = abs(ma[ka]) - 1.0, abs(mu) - 1.0
         value = a.value + (b.value - a.value) * fa / (fa - fb) if fa != fb else b.value
         if abs(mu.imag) > 1e-6 * abs(mu):
-            kind = (f"Neimark-Sacker (complex pair at angle +-{abs(math.atan2(mu.imag, mu.real)):.3g}"
-                    " rad: a torus, quasi-periodic motion)")
+            angle = abs(math.atan2(mu.imag, mu.real))
+            kind = (f"Neimark-Sacker (complex pair at angle +-{angle:.3g} rad: a torus, "
+                    "quasi-periodic motion)")
         elif mu.real > 0:
             kind = "fold or pitchfork (real multiplier through +1)"
         else:

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from knotmm.errors import ConfigError
-from knotmm.orbit.flow import DEFAULT_STEP, FlowMap
 from knotmm.orbit.floquet import floquet
+from knotmm.orbit.flow import make_flow
 from knotmm.orbit.modes import describe_mode
 from knotmm.orbit.output import orbit_summary, write_orbit_files
 from knotmm.orbit.shooting import DEFAULT_TOLERANCE, solve_orbit
@@ -53,7 +53,7 @@ class OrbitReport:
 
 
 def orbit_of_run(run_dir, t: float | None = None, modes: int = DEFAULT_MODES, out=None,
-                 timestep: float = DEFAULT_STEP, tolerance: float = DEFAULT_TOLERANCE,
+                 timestep: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
                  engine: str = "auto", threads: int = 1) -> OrbitReport:
     """Find the periodic orbit of a run's swirling state and its Floquet multipliers.
 
@@ -67,8 +67,9 @@ def orbit_of_run(run_dir, t: float | None = None, modes: int = DEFAULT_MODES, ou
         Leading non-neutral multipliers to compute (0: none).
     out : str or Path, optional
         Output directory; default ``RUN_DIR/orbit``.
-    timestep : float
-        Fixed step of the flow map (Heun), tau_d.
+    timestep : float, optional
+        Fixed step of the flow map (Heun), tau_d; default: 0.01, or less where the chain is
+        stiffer (:func:`knotmm.orbit.flow.make_flow`).
     tolerance : float
         Newton's target residual, d rms per bead.
     engine : {"auto", "plugin", "python"}
@@ -92,8 +93,8 @@ def orbit_of_run(run_dir, t: float | None = None, modes: int = DEFAULT_MODES, ou
     start = start_from_run(run_dir, t)
     from knotmm.model.parameters import ChainModel
 
-    flow = FlowMap(start.positions, ChainModel.from_config(start.config), timestep=timestep,
-                   engine=engine, threads=threads)
+    flow = make_flow(start.positions, ChainModel.from_config(start.config), timestep,
+                     engine=engine, threads=threads)
     period, rotation, distance = refine_guess(flow, start.positions, start.tau_swirl)
     if distance > MAX_RECURRENCE:
         raise ConfigError(
@@ -127,7 +128,7 @@ def orbit_of_run(run_dir, t: float | None = None, modes: int = DEFAULT_MODES, ou
 
 
 def continuation_of_run(run_dir, spec: str, points: int = 8, modes: int = DEFAULT_MODES,
-                        out=None, t: float | None = None, timestep: float = DEFAULT_STEP,
+                        out=None, t: float | None = None, timestep: float | None = None,
                         tolerance: float = DEFAULT_TOLERANCE, engine: str = "auto",
                         threads: int = 1, on_point=None):
     """Follow the orbit of a run along a parameter and write the branch.
@@ -157,8 +158,8 @@ def continuation_of_run(run_dir, spec: str, points: int = 8, modes: int = DEFAUL
         raise ConfigError(f"--modes {modes!r}: expected an integer >= 0 (default 10)")
     wall = time.perf_counter()
     start = start_from_run(run_dir, t)
-    flow = FlowMap(start.positions, ChainModel.from_config(start.config), timestep=timestep,
-                   engine=engine, threads=threads)
+    flow = make_flow(start.positions, ChainModel.from_config(start.config), timestep,
+                     engine=engine, threads=threads)
     period, rotation, distance = refine_guess(flow, start.positions, start.tau_swirl)
     orbit = solve_orbit(flow, start.positions, period, rotation, tolerance=tolerance)
     if not orbit.converged:
@@ -167,15 +168,16 @@ def continuation_of_run(run_dir, spec: str, points: int = 8, modes: int = DEFAUL
             f" {orbit.message}); nothing to continue from"
         )
 
-    def make_flow(model, positions):
-        return FlowMap(positions, model, timestep=timestep, engine=engine, threads=threads)
+    def flow_for(model, positions, step=timestep):
+        return make_flow(positions, model, step, engine=engine, threads=threads)
 
-    branch = continue_orbit(orbit, start.config, key, a, b, make_flow, points=points,
+    branch = continue_orbit(orbit, start.config, key, a, b, flow_for, points=points,
                             modes=modes, tolerance=tolerance, on_point=on_point)
     bifurcations = find_bifurcations(branch)
     out = Path(out) if out is not None else Path(run_dir) / DEFAULT_SUBDIR
     extra = {"run": str(Path(run_dir).name), "requested": [a, b], "points_asked": points,
              "reached_stop": bool(branch) and (branch[-1].value - a) / (b - a) >= 0.99,
-             "timestep": timestep, "wall_time_s": round(time.perf_counter() - wall, 2)}
+             "timesteps": [p.orbit.timestep for p in branch],
+             "wall_time_s": round(time.perf_counter() - wall, 2)}
     write_branch(out, key, branch, bifurcations, modes, extra)
     return branch, bifurcations, out

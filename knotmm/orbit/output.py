@@ -93,7 +93,7 @@ def orbit_summary(orbit, result=None, shape=None, extra: dict | None = None) -> 
             "floquet_moduli": [float(abs(m)) for m in result.multipliers],
             "neutral_multipliers": [
                 {"symmetry": name, "multiplier": _pairs([m])[0]}
-                for name, m in zip(result.neutral_names, result.neutral)
+                for name, m in zip(result.neutral_names, result.neutral, strict=False)
             ],
             "leading_exponent": _finite(result.leading_exponent),
             "unstable_multipliers": result.n_unstable,
@@ -121,7 +121,7 @@ def _mode_frames(flow, orbit, mode: np.ndarray, frames: np.ndarray) -> np.ndarra
     eps = JVP_EPSILON / max(rms(v), 1e-300)
     moved = flow.trajectory(orbit.positions + eps * v, orbit.period, len(frames) - 1)
     out = np.empty_like(frames)
-    for k, (base, pert) in enumerate(zip(frames, moved)):
+    for k, (base, pert) in enumerate(zip(frames, moved, strict=False)):
         d = pert - base
         d -= d.mean(axis=0)
         size = rms(d)

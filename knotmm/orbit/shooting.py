@@ -71,6 +71,8 @@ class Orbit:
         Why Newton stopped.
     n_flows : int
         Integrations over a period spent.
+    timestep : float
+        The fixed step of the flow map the orbit belongs to, tau_d.
     """
 
     positions: np.ndarray
@@ -83,6 +85,7 @@ class Orbit:
     history: list = field(default_factory=list)
     message: str = ""
     n_flows: int = 0
+    timestep: float = math.nan
 
     @property
     def sedimentation_velocity(self) -> float:
@@ -223,4 +226,5 @@ def solve_orbit(flow, x0: np.ndarray, period: float, rotation: float, *,
         history=history,
         message=message,
         n_flows=flow.n_flows - start_flows,
+        timestep=flow.timestep,
     )

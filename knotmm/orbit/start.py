@@ -130,7 +130,7 @@ def refine_guess(flow, x: np.ndarray, tau: float, samples: int = 130):
     frames = flow.trajectory(x, 1.3 * tau, samples)
     times = np.linspace(0.0, 1.3 * tau, samples + 1)
     best = (math.inf, tau, 0.0)
-    for time, frame in zip(times, frames):
+    for time, frame in zip(times, frames, strict=False):
         if time < 0.7 * tau:
             continue
         a = centre(frame)
