@@ -32,6 +32,7 @@ import numpy as np
 
 from knotmm import __version__
 from knotmm.config import RunConfig, resolve_stepping
+from knotmm.dynamics.registry import AUTO, auto_deterministic
 from knotmm.engine.checkpoint import CheckpointReporter, read_checkpoint
 from knotmm.engine.interrupt import StopRequested, describe_signal, stop_signal
 from knotmm.engine.reporters import DCDReporter, ObservablesReporter, ProgressReporter
@@ -173,6 +174,7 @@ def run(
     start_worker()  # topoly's start-up in the knot worker overlaps building the run
     directory = Path(directory if directory is not None else cfg["output.directory"])
     name, timestep = resolve_stepping(cfg)  # run.toml records what is used, not "auto"
+    by_stiffness = cfg["run.integrator"] == AUTO and not math.isfinite(cfg["run.peclet"])
     cfg = cfg.replace({"run.integrator": name, "run.timestep": timestep})
     integrator_from_config(cfg)  # checks the integrator against run.peclet before the template
     _check_stop_on_change(cfg)
@@ -182,6 +184,13 @@ def run(
     if cfg["output.directory"] != str(directory):
         cfg = cfg.replace({"output.directory": str(directory)})
     sim = Simulation.from_config(cfg, template.positions)
+    if by_stiffness:
+        stiffness = sim.stiffness()
+        choice = auto_deterministic(stiffness)
+        log.info("run.integrator auto: stiffness %.4g / tau_d -> %s", stiffness, choice)
+        if choice != name:
+            cfg = cfg.replace({"run.integrator": choice})
+            sim = Simulation.from_config(cfg, template.positions)
     if directory.exists() and not directory.is_dir():
         prepare_directory(directory, overwrite)  # says it is a file
     lock = RunLock(directory, "run")

@@ -300,6 +300,22 @@ class Simulation:
         self.n_evaluations += 1
         return rpy_velocities(positions, self.forces(positions), threads=self.mobility_threads)
 
+    def stiffness(self) -> float:
+        """Spectral radius of the velocity Jacobian at the current positions, in 1/tau_d.
+
+        RKC's estimate (:meth:`knotmm.dynamics.deterministic.RKC2.spectral_radius`: a power
+        iteration by finite differences, times 1.2). Its evaluations are not counted in
+        :attr:`n_evaluations`.
+        """
+        from knotmm.dynamics.deterministic import RKC2
+
+        counted = self.n_evaluations
+        try:
+            return RKC2(self.integrator.timestep).spectral_radius(
+                self.velocity, self.positions, self.velocity(self.positions))
+        finally:
+            self.n_evaluations = counted
+
     def energies(self, positions: np.ndarray | None = None) -> dict[str, float]:
         """Energy of each term (``bond``, ``bend``, ``steric``, ``gravity``) and ``total``.
 

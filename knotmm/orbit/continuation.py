@@ -266,9 +266,9 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
         diff = (ub - ua) * scale
         ds = float(np.linalg.norm(diff))
         tangent = diff / ds
-        remaining = (stop - b.value) / (b.value - a.value) if b.value != a.value else 1.0
-        if 0 < remaining < 1:
-            ds *= remaining  # land near stop
+        dp_pred = ds * tangent[-1] / scale[-1]
+        if dp_pred * direction > 0 and (b.value + dp_pred - stop) * direction > 0:
+            ds *= (stop - b.value) / dp_pred  # the predictor lands on stop
         try:
             found = _arclength_newton(
                 make_flow, cfg, key,

@@ -1,0 +1,54 @@
+"""``run.integrator = "auto"`` at Pe = inf picks by the chain's measured stiffness."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from knotmm.dynamics.registry import AUTO_STIFFNESS, auto_deterministic
+
+
+def test_policy_threshold():
+    assert auto_deterministic(0.5 * AUTO_STIFFNESS) == "rk23"
+    assert auto_deterministic(2.0 * AUTO_STIFFNESS) == "rkc2"
+
+
+def test_stiffness_is_the_largest_eigenvalue_of_a_dense_jacobian():
+    """Simulation.stiffness against the eigenvalues of the velocity Jacobian built column by
+    column in the test (8 beads, Reference platform), times RKC's 1.2 margin. The power
+    iteration stops when its estimate changes by under 1 % (at most 30 rounds), so it may
+    fall short of the top eigenvalue by some per cent, never exceed it."""
+    from knotmm.dynamics.deterministic import RK23
+    from knotmm.engine.simulation import Simulation
+    from knotmm.model.parameters import ChainModel
+
+    n = 8
+    ang = 2 * np.pi * np.arange(n) / n
+    radius = 0.6 / (2 * math.sin(math.pi / n))
+    x = np.column_stack([radius * np.cos(ang), radius * np.sin(ang), 0.05 * np.sin(2 * ang)])
+    sim = Simulation(x, ChainModel(bending_stiffness=50.0), RK23(0.01), platform="Reference",
+                     engine="python")
+    f0 = sim.velocity(x)
+    jac = np.empty((3 * n, 3 * n))
+    for k in range(3 * n):
+        e = np.zeros(3 * n)
+        e[k] = 1e-6
+        jac[:, k] = ((sim.velocity(x + e.reshape(n, 3)) - f0) / 1e-6).ravel()
+    largest = np.max(np.abs(np.linalg.eigvals(jac)))
+    before = sim.n_evaluations
+    assert 0.85 * 1.2 * largest <= sim.stiffness() <= 1.01 * 1.2 * largest
+    assert sim.n_evaluations == before  # the measurement is not counted
+
+
+@pytest.mark.parametrize(("bending", "expected"), [(5.0, "rk23"), (50.0, "rkc2")])
+def test_run_records_the_integrator_auto_picked(tmp_path, bending, expected):
+    from knotmm.config import RunConfig, load_run_file
+    from knotmm.workflow import run
+
+    cfg = RunConfig.from_dict({"knot": {"beads": 40},
+                               "model": {"bending_stiffness": bending},
+                               "run": {"duration": 0.5, "topology_check_interval": 0.0}})
+    run(cfg, tmp_path / "r", progress=False)
+    assert load_run_file(tmp_path / "r" / "run.toml")["run.integrator"] == expected
