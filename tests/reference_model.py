@@ -256,3 +256,23 @@ def close_contact_ring(n, rng, contacts=6, lo=0.45, hi=0.56):
                 placed += 1
         if placed == contacts and min_nonbonded_distance(x) >= lo:
             return x
+
+
+def flat_ring(n: int, bond: float = 0.6, wave: float = 0.0) -> np.ndarray:
+    """A regular n-gon of side ``bond`` in the xy plane, z = ``wave`` sin(2 phi); (n, 3), d."""
+    ang = 2 * np.pi * np.arange(n) / n
+    radius = bond / (2 * np.sin(np.pi / n))
+    return np.column_stack([radius * np.cos(ang), radius * np.sin(ang),
+                            wave * np.sin(2 * ang)])
+
+
+def dense_jacobian(fn, x: np.ndarray, eps: float = 1e-6) -> np.ndarray:
+    """Jacobian of ``fn: (n, 3) -> (n, 3)`` at ``x``, column by column (forward differences)."""
+    n3 = x.size
+    f0 = np.asarray(fn(x)).ravel()
+    jac = np.empty((f0.size, n3))
+    for k in range(n3):
+        e = np.zeros(n3)
+        e[k] = eps
+        jac[:, k] = (np.asarray(fn(x + e.reshape(x.shape))).ravel() - f0) / eps
+    return jac

@@ -52,6 +52,35 @@ class OrbitReport:
     out: Path
 
 
+def _check_modes(modes) -> None:
+    if not isinstance(modes, int) or modes < 0:
+        raise ConfigError(f"--modes {modes!r}: expected an integer >= 0 (default 10)")
+
+
+def _first_orbit(run_dir, t, timestep, tolerance, engine, threads):
+    """Read the run, build the flow map, sharpen the guess and shoot.
+
+    Returns (OrbitStart, FlowMap, Orbit, initial recurrence distance in d).
+    """
+    from knotmm.model.parameters import ChainModel
+
+    if not (isinstance(tolerance, (int, float)) and 0 < tolerance < 1):
+        raise ConfigError(f"--tolerance {tolerance!r}: expected a residual in d, e.g. 1e-8")
+    start = start_from_run(run_dir, t)
+    flow = make_flow(start.positions, ChainModel.from_config(start.config), timestep,
+                     engine=engine, threads=threads)
+    period, rotation, distance = refine_guess(flow, start.positions, start.tau_swirl)
+    if distance > MAX_RECURRENCE:
+        raise ConfigError(
+            f"{run_dir}: the state at t = {start.time:g} tau_d does not come back within "
+            f"{MAX_RECURRENCE:g} d rms per bead in 0.7-1.3 tau_swirl (closest: {distance:.3g} d "
+            f"at {period:.4g} tau_d); give --t inside the periodic window "
+            f"{start.window[0]:g} .. {start.window[1]:g}"
+        )
+    orbit = solve_orbit(flow, start.positions, period, rotation, tolerance=tolerance)
+    return start, flow, orbit, distance
+
+
 def orbit_of_run(run_dir, t: float | None = None, modes: int = DEFAULT_MODES, out=None,
                  timestep: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
                  engine: str = "auto", threads: int = 1) -> OrbitReport:
@@ -85,25 +114,10 @@ def orbit_of_run(run_dir, t: float | None = None, modes: int = DEFAULT_MODES, ou
     ConfigError
         Bad arguments, a Brownian run, a run without a periodic window.
     """
-    if not isinstance(modes, int) or modes < 0:
-        raise ConfigError(f"--modes {modes!r}: expected an integer >= 0 (default 10)")
-    if not (isinstance(tolerance, (int, float)) and 0 < tolerance < 1):
-        raise ConfigError(f"--tolerance {tolerance!r}: expected a residual in d, e.g. 1e-8")
+    _check_modes(modes)
     wall = time.perf_counter()
-    start = start_from_run(run_dir, t)
-    from knotmm.model.parameters import ChainModel
-
-    flow = make_flow(start.positions, ChainModel.from_config(start.config), timestep,
-                     engine=engine, threads=threads)
-    period, rotation, distance = refine_guess(flow, start.positions, start.tau_swirl)
-    if distance > MAX_RECURRENCE:
-        raise ConfigError(
-            f"{run_dir}: the state at t = {start.time:g} tau_d does not come back within "
-            f"{MAX_RECURRENCE:g} d rms per bead in 0.7-1.3 tau_swirl (closest: {distance:.3g} d "
-            f"at {period:.4g} tau_d); give --t inside the periodic window "
-            f"{start.window[0]:g} .. {start.window[1]:g}"
-        )
-    orbit = solve_orbit(flow, start.positions, period, rotation, tolerance=tolerance)
+    start, flow, orbit, distance = _first_orbit(run_dir, t, timestep, tolerance, engine,
+                                                threads)
     result = shape = None
     if orbit.converged and modes > 0:
         result = floquet(flow, orbit, k=min(modes, orbit.positions.size - 8))
@@ -149,19 +163,13 @@ def continuation_of_run(run_dir, spec: str, points: int = 8, modes: int = DEFAUL
     -------
     (list of ContinuationPoint, list of Bifurcation, Path)
     """
-    from knotmm.model.parameters import ChainModel
     from knotmm.orbit.continuation import continue_orbit, find_bifurcations, parse_range
     from knotmm.orbit.output import write_branch
 
     key, a, b = parse_range(spec)
-    if not isinstance(modes, int) or modes < 0:
-        raise ConfigError(f"--modes {modes!r}: expected an integer >= 0 (default 10)")
+    _check_modes(modes)
     wall = time.perf_counter()
-    start = start_from_run(run_dir, t)
-    flow = make_flow(start.positions, ChainModel.from_config(start.config), timestep,
-                     engine=engine, threads=threads)
-    period, rotation, distance = refine_guess(flow, start.positions, start.tau_swirl)
-    orbit = solve_orbit(flow, start.positions, period, rotation, tolerance=tolerance)
+    start, _, orbit, _ = _first_orbit(run_dir, t, timestep, tolerance, engine, threads)
     if not orbit.converged:
         raise ConfigError(
             f"{run_dir}: the orbit of the run did not converge (residual {orbit.residual:.3g} d,"

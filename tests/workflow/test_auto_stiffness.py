@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
@@ -20,22 +18,16 @@ def test_stiffness_is_the_largest_eigenvalue_of_a_dense_jacobian():
     column in the test (8 beads, Reference platform), times RKC's 1.2 margin. The power
     iteration stops when its estimate changes by under 1 % (at most 30 rounds), so it may
     fall short of the top eigenvalue by some per cent, never exceed it."""
+    from reference_model import dense_jacobian, flat_ring
+
     from knotmm.dynamics.deterministic import RK23
     from knotmm.engine.simulation import Simulation
     from knotmm.model.parameters import ChainModel
 
-    n = 8
-    ang = 2 * np.pi * np.arange(n) / n
-    radius = 0.6 / (2 * math.sin(math.pi / n))
-    x = np.column_stack([radius * np.cos(ang), radius * np.sin(ang), 0.05 * np.sin(2 * ang)])
+    x = flat_ring(8, wave=0.05)
     sim = Simulation(x, ChainModel(bending_stiffness=50.0), RK23(0.01), platform="Reference",
                      engine="python")
-    f0 = sim.velocity(x)
-    jac = np.empty((3 * n, 3 * n))
-    for k in range(3 * n):
-        e = np.zeros(3 * n)
-        e[k] = 1e-6
-        jac[:, k] = ((sim.velocity(x + e.reshape(n, 3)) - f0) / 1e-6).ravel()
+    jac = dense_jacobian(sim.velocity, x)
     largest = np.max(np.abs(np.linalg.eigvals(jac)))
     before = sim.n_evaluations
     assert 0.85 * 1.2 * largest <= sim.stiffness() <= 1.01 * 1.2 * largest
