@@ -26,19 +26,25 @@ step) would add the drift ``kT sum_jk (dB_ik/dr_j) B_jk``, which depends on the 
 
 Integrators
 -----------
-================== =========== ========================================================
-name               weak order  update (``W = sqrt(2 kT h) B(y0) xi``, ``v = mu F``)
-================== =========== ========================================================
-``euler_maruyama`` 1           ``y1 = y0 + h v(y0) + W``
-``ito_heun``       1 (2)       ``y* = y0 + h v(y0) + W``; ``y1 = y0 + h/2 (v(y0) + v(y*)) + W``
-================== =========== ========================================================
+======================= =========== ===================================================
+name                    weak order  update (``W = sqrt(2 kT h) B(y0) xi``, ``v = mu F``)
+======================= =========== ===================================================
+``euler_maruyama``      1           ``y1 = y0 + h v(y0) + W``
+``ito_heun``            1 (2)       ``y* = y0 + h v(y0) + W``;
+                                    ``y1 = y0 + h/2 (v(y0) + v(y*)) + W``
+``leimkuhler_matthews`` 1           ``p = y0 + h v(y0) + k0``, ``k1 = sqrt(kT h/2) B(p) xi``;
+                                    ``y1 = p + k1`` (``k1`` held for the next step)
+======================= =========== ===================================================
 
-Both draw the noise once per step, at the start of the step, so both converge to the Ito
-equation above. ``ito_heun`` is weak order 2 where the mobility is constant (additive
-noise) and second order in the deterministic limit; for the position-dependent RPY mobility
-it is weak order 1 with a much smaller error constant on stiff modes (see
-:class:`ItoHeun`). Adaptive error control does not carry over to these equations: finite
-``Pe`` always runs with a fixed step.
+The first two draw the noise once per step, at the start of the step, so both converge to
+the Ito equation above; :class:`LeimkuhlerMatthews` splits each sample over two steps, with
+``B`` taken at a point independent of the sample, and converges to it too. ``ito_heun`` is
+weak order 2 where the mobility is constant (additive noise) and second order in the
+deterministic limit; for the position-dependent RPY mobility it is weak order 1 with a much
+smaller error constant on stiff modes (see :class:`ItoHeun`). ``leimkuhler_matthews`` keeps
+the stationary distribution of stiff harmonic modes exact up to its stability limit (see
+:class:`LeimkuhlerMatthews`). Adaptive error control does not carry over to these
+equations: finite ``Pe`` always runs with a fixed step.
 
 Step size
 ---------
@@ -72,6 +78,7 @@ default steps and the choice of integrator for ``run.integrator = "auto"`` from
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 
@@ -90,6 +97,7 @@ from knotmm.errors import ConfigError
 __all__ = [
     "EulerMaruyama",
     "ItoHeun",
+    "LeimkuhlerMatthews",
     "StochasticIntegrator",
     "thermal_energy",
 ]
@@ -287,6 +295,121 @@ class ItoHeun(StochasticIntegrator):
         v0 = rhs(y)
         v1 = rhs(y + h * v0 + w)
         return y + (0.5 * h) * (v0 + v1) + w
+
+
+class LeimkuhlerMatthews(StochasticIntegrator):
+    """Leimkuhler-Matthews (non-Markovian, "BAOAB limit") step: each noise sample used twice.
+
+    .. code-block:: text
+
+        y_{n+1} = y_n + h v(y_n) + k_n + k_{n+1}
+        k_{n+1} = sqrt(kT h / 2) B(p_{n+1}) xi_{n+1},   p_{n+1} = y_n + h v(y_n) + k_n
+                  B B^T = mu,  xi ~ N(0, I)
+
+    with ``v = mu F``. The half kick ``k_{n+1}`` drawn in this step is held and used again in
+    the next one, so every sample enters twice and carries ``sqrt(2 kT h) B xi`` in all: the
+    noise of one Euler-Maruyama step, split over two steps. One velocity and one noise sample
+    (a Cholesky factorisation) per step, half the velocities of :class:`ItoHeun`.
+    Equivalently ``p_n = y_n - k_n`` is a Markov chain, ``p_{n+1} = p_n + h v(p_n + k_n) +
+    2 k_n`` with ``k_n = sqrt(kT h / 2) B(p_n) xi_n``: Euler-Maruyama with the velocity taken
+    half a kick ahead; the reported positions are ``y_n = p_n + k_n``.
+
+    Invariant measure: for a harmonic potential and a constant mobility the stationary
+    variance is exact for every stable step (the mode ``y' = -lambda y + sqrt(2 kT) dW``
+    becomes ``y_{n+1} = (1 - z) y_n + s (xi_n + xi_{n+1})``, ``z = h lambda``,
+    ``s^2 = kT h / 2``, an ARMA(1,1) process of variance ``2 s^2 / z = kT / lambda``); for
+    nonlinear forces and a constant mobility it is second order (Leimkuhler & Matthews,
+    Appl. Math. Res. Express 2013, 34; J. Chem. Phys. 138, 174102 (2013)). Dynamics is weak
+    order 1: the mean follows Euler's drift, and the displacement over ``m`` steps has variance
+    ``2 kT mu (m - 1/2) h`` (each end point holds only half a kick), so time correlations
+    are right beyond a few steps, not within one.
+
+    Position-dependent mobility: ``B`` of each sample is taken at ``p_{n+1}``, a point that
+    does not depend on ``xi_{n+1}``, and both halves of the sample reuse that vector. So its
+    two halves add up to one Ito increment and no spurious drift appears. Taking
+    ``B(y_n) (xi_n + xi_{n+1})`` instead correlates ``y_n`` with ``xi_n`` and adds a drift of
+    order ``kT sum_jk (dB_ik/dy_j) B_jk`` (a part of the Stratonovich correction), which is
+    not zero for the Cholesky factor of the RPY tensor: 0.04 d/tau_d along a free pair 0.7 d
+    apart at kT = 1 F0 d, measured by ``tests/dynamics/test_brownian_lm.py``. Taking
+    ``B(y_n) xi_{n+1}`` (no drift either) biases the invariant measure at first order in
+    ``h``; ``B(p_{n+1})`` keeps it close to second order. Bond-length variance over
+    Boltzmann's of harmonic RPY dimers (``r0 = 0.6 d``, bond sd 0.1 d, symmetric-root noise,
+    errors 0.0016; ``z = h k mu_rel(r0)``):
+
+    ============ ================ ================ ================ ========
+    z            B(p_{n+1})       B(y_n) xi_{n+1}  B(y_n) (both xi) ito_heun
+    ============ ================ ================ ================ ========
+    0.28         0.9994           1.010            1.004            0.973
+    0.56         0.9994           1.021            1.010            0.867
+    1.12         1.049            1.098            1.066            0.454
+    ============ ================ ================ ================ ========
+
+    On the study's chain (T(2,3), N = 90, Pe = 2, gravity 0, ``benchmarks/bench_brownian.py``)
+    the bond-length variance is 1.0003 +- 0.0012 of Boltzmann's at h = 0.01 tau_d (400
+    tau_d); its centre-of-mass diffusion agrees with ``ito_heun``'s at 0.002 tau_d within the
+    (4-5 %) errors there, and within 0.6 % (errors 0.9 %) on an ensemble of stiff RPY trimers
+    (``benchmarks/README.md``).
+
+    Step size: stable for ``h rho < 2`` (``rho`` the largest relaxation rate), as
+    Euler-Maruyama, and for a harmonic mode the variance stays exact up to that limit (where
+    ``ito_heun``'s falls to 0.53x at ``h lambda = 1.2``). The mobility of a bond changes with
+    its length, so near the limit the stiffest bonds fluctuate into ``h lambda > 2`` and
+    the variance grows (table above): keep ``h rho`` below about 1. On the study's chain at
+    Pe = 2, h = 0.01 tau_d is the default; 0.02 blew up within 6 tau_d (``ito_heun`` did at
+    0.01 within 4 tau_d).
+
+    A step clipped by ``max_dt`` draws its half kick with its own length: the held kick keeps
+    the scale of the step that drew it, so each sample still carries ``2 kT h`` of variance
+    for the step it was drawn in. The first step (and the first after :meth:`reset`, when
+    positions were changed from outside) draws a fresh held kick at ``y_n``. The held kick is
+    part of :meth:`get_state` (``held_kick``, JSON text of the (n_beads, 3) array, exact), so
+    a resumed run takes the same steps as an uninterrupted one. At ``Pe = inf`` it is
+    :class:`knotmm.dynamics.deterministic.Euler`.
+    """
+
+    name = "leimkuhler_matthews"
+    weak_order = 1
+    evaluations_per_step = 1
+
+    def __init__(self, timestep: float, *args, **kwargs):
+        super().__init__(timestep, *args, **kwargs)
+        self._kick: np.ndarray | None = None
+
+    def reset(self) -> None:
+        """Forget the held half kick (the next step draws a fresh one)."""
+        self._kick = None
+
+    def step(self, rhs, y, max_dt=math.inf):
+        """One step of ``min(timestep, max_dt)``; returns ``(y_new, dt)``."""
+        h = min(self.timestep, max_dt)
+        v = rhs(y)
+        if self.kT == 0.0:
+            y_new = y + h * v
+        else:
+            scale = math.sqrt(0.5 * self.kT * h)
+            if self._kick is None or self._kick.shape != y.shape:
+                self._kick = scale * self.noise(y, self.rng)
+            p = y + h * v + self._kick
+            self._kick = scale * self.noise(p, self.rng)
+            y_new = p + self._kick
+        self.n_accepted += 1
+        return y_new, h
+
+    def get_state(self) -> dict:
+        """:meth:`StochasticIntegrator.get_state` plus ``held_kick`` ("" when none is held)."""
+        state = super().get_state()
+        state["held_kick"] = "" if self._kick is None else json.dumps(self._kick.tolist())
+        return state
+
+    def set_state(self, state: dict) -> None:
+        """Restore :meth:`get_state`'s output, the held half kick included."""
+        super().set_state(state)  # resets: no kick held
+        held = state.get("held_kick", "")
+        if held:
+            kick = np.asarray(json.loads(held), dtype=np.float64)
+            if kick.ndim != 2 or kick.shape[1] != 3:
+                raise ValueError(f"held_kick: expected shape (n_beads, 3), got {kick.shape}")
+            self._kick = kick
 
 
 #: Stochastic integrator name -> class.
