@@ -309,7 +309,8 @@ def integrator_from_config(cfg: Mapping):
     if REGISTRY[name].brownian and math.isfinite(peclet) and timestep > _BROWNIAN_STEP_WARNING:
         log.warning(
             "run.timestep = %g with run.peclet = %g: above ~%g tau_d the stiff bond "
-            "modes are unstable or strongly biased (%g is a good step for ito_heun)",
+            "modes are unstable or strongly biased (%g is a good step for ito_heun, 0.01 "
+            "for leimkuhler_matthews)",
             timestep,
             peclet,
             _BROWNIAN_STEP_WARNING,

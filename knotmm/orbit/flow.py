@@ -234,5 +234,5 @@ def make_flow(positions, model, timestep: float | None = None, engine: str = "au
     if step >= DEFAULT_STEP:
         return flow
     digits = 10.0 ** (math.floor(math.log10(step)) - 1)
-    step = math.floor(step / digits) * digits
+    step = float(f"{math.floor(step / digits) * digits:.2g}")
     return FlowMap(positions, model, timestep=step, engine=engine, threads=threads)

@@ -29,7 +29,9 @@ def test_mirrored_trefoil_has_the_mirror_orbit(run40, tmp_path, run_maker):
                                                         rel=1e-5)
     assert left["sedimentation_velocity"] == pytest.approx(right["sedimentation_velocity"],
                                                            rel=1e-6)
-    np.testing.assert_allclose(left["floquet_moduli"], right["floquet_moduli"], rtol=1e-4)
+    # the multipliers of the fixed-step map depend on the phase the orbit was started from
+    # at O(h^2) (3e-4 at h = 0.01 tau_d): compare them at that accuracy
+    np.testing.assert_allclose(left["floquet_moduli"], right["floquet_moduli"], rtol=1e-3)
     assert left["leading_mode_shape"]["label"] == right["leading_mode_shape"]["label"]
 
 
