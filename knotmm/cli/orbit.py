@@ -92,7 +92,8 @@ def execute(args) -> int:
                                                         points=args.points, on_point=show,
                                                         **common)
         for b in bifurcations:
-            print(f"bifurcation near {b.value:.6g}: {b.kind}; {'; '.join(b.notes)}")
+            where = "" if "discrete" in b.kind else f" near {b.value:.6g}"
+            print(f"bifurcation{where}: {b.kind}; {'; '.join(b.notes)}")
         if not bifurcations:
             print("no multiplier crossed the unit circle along the branch")
         print(f"{len(branch)} points; wrote continuation.csv, continuation.json, "

@@ -306,8 +306,12 @@ def _orbit_at_beads(orbit, cfg, n_new, make_flow, tolerance):
     return found, flow
 
 
-def find_bifurcations(branch) -> list[Bifurcation]:
-    """Crossings of the unit circle between consecutive points (see the module's text)."""
+def find_bifurcations(branch, discrete: bool = False) -> list[Bifurcation]:
+    """Crossings of the unit circle between consecutive points (see the module's text).
+
+    With ``discrete`` (``knot.beads``) there is no crossing point between two neighbouring
+    values: a change is reported as such, at the second value, without a kind.
+    """
     out = []
     for a, b in zip(branch, branch[1:], strict=False):
         if a.floquet is None or b.floquet is None:
@@ -323,6 +327,14 @@ def find_bifurcations(branch) -> list[Bifurcation]:
         ka = int(np.argmin(np.abs(ma - 1.0)))
         fa, fb = abs(ma[ka]) - 1.0, abs(mu) - 1.0
         value = a.value + (b.value - a.value) * fa / (fa - fb) if fa != fb else b.value
+        if discrete:
+            direction = "loses" if nb > na else "gains"
+            out.append(Bifurcation(
+                (a.value, b.value), float(b.value),
+                f"change of stability between {a.value:g} and {b.value:g} (a discrete "
+                f"parameter: no crossing point in between)", mu,
+                [f"the orbit {direction} stability ({na} -> {nb} unstable)"]))
+            continue
         if abs(mu.imag) > 1e-6 * abs(mu):
             angle = abs(math.atan2(mu.imag, mu.real))
             kind = (f"Neimark-Sacker (complex pair at angle +-{angle:.3g} rad: a torus, "

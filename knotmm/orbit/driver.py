@@ -163,7 +163,12 @@ def continuation_of_run(run_dir, spec: str, points: int = 8, modes: int = DEFAUL
     -------
     (list of ContinuationPoint, list of Bifurcation, Path)
     """
-    from knotmm.orbit.continuation import continue_orbit, find_bifurcations, parse_range
+    from knotmm.orbit.continuation import (
+        DISCRETE_KEYS,
+        continue_orbit,
+        find_bifurcations,
+        parse_range,
+    )
     from knotmm.orbit.output import write_branch
 
     key, a, b = parse_range(spec)
@@ -181,7 +186,7 @@ def continuation_of_run(run_dir, spec: str, points: int = 8, modes: int = DEFAUL
 
     branch = continue_orbit(orbit, start.config, key, a, b, flow_for, points=points,
                             modes=modes, tolerance=tolerance, on_point=on_point)
-    bifurcations = find_bifurcations(branch)
+    bifurcations = find_bifurcations(branch, discrete=key in DISCRETE_KEYS)
     out = Path(out) if out is not None else Path(run_dir) / DEFAULT_SUBDIR
     extra = {"run": str(Path(run_dir).name), "requested": [a, b], "points_asked": points,
              "reached_stop": bool(branch) and (branch[-1].value - a) / (b - a) >= 0.99,

@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from knotmm.io.atomic import write_text_atomic
+from knotmm.io.rundir import TOPOLOGY_FILE as TOPOLOGY
 from knotmm.orbit.flow import JVP_EPSILON, rms
 
 __all__ = ["ORBIT_FILE", "orbit_summary", "write_orbit_files", "plot_multipliers"]
@@ -26,7 +27,6 @@ __all__ = ["ORBIT_FILE", "orbit_summary", "write_orbit_files", "plot_multipliers
 ORBIT_FILE = "orbit.json"
 ORBIT_DCD = "orbit.dcd"
 MODE_DCD = "mode_1.dcd"
-TOPOLOGY = "topology.pdb"
 PLOT = "orbit_multipliers.png"
 #: Frames per period in ``orbit.dcd`` and ``mode_1.dcd``.
 ORBIT_FRAMES = 60

@@ -68,3 +68,10 @@ def test_bifurcation_kinds_and_interpolated_location():
     assert "Neimark-Sacker" in b.kind
     assert "0.4" in b.kind
     assert find_bifurcations([_point(0.0, [0.5]), _point(1.0, [0.9])]) == []
+
+
+def test_discrete_parameter_reports_a_change_without_a_crossing_point():
+    branch = [_point(44.0, [1.03 * np.exp(0.4j)]), _point(45.0, [0.95 * np.exp(0.08j)])]
+    (b,) = find_bifurcations(branch, discrete=True)
+    assert b.value == 45.0 and "discrete" in b.kind and "Neimark" not in b.kind
+    assert "gains stability" in b.notes[0]
