@@ -26,11 +26,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse.linalg import LinearOperator, gmres
+from scipy.sparse.linalg import gmres
 
 from knotmm.errors import ConfigError, SimulationFault
-from knotmm.orbit.flow import centre, rms, rotate_z, rotation_generator
-from knotmm.orbit.shooting import MAX_MOVE, Orbit, residual, solve_orbit
+from knotmm.orbit.flow import rms
+from knotmm.orbit.shooting import MAX_MOVE, Orbit, bordered_operator, residual, solve_orbit
 
 __all__ = ["ContinuationPoint", "Bifurcation", "parse_range", "continue_orbit",
            "find_bifurcations"]
@@ -147,24 +147,8 @@ def _arclength_newton(make_flow, cfg, key, u1, tangent, ds, scale, tolerance,
         r_p, _ = residual(make_flow(_model(cfg, key, value + dp), x, step_h), x, period,
                           rotation)
         col_p = ((r_p - r) / dp).ravel()
-        col_t = rotate_z(centre(flow.velocity(end)), -rotation).ravel()
-        col_th = -rotation_generator(rotate_z(centre(end), -rotation)).ravel()
-        phase = centre(flow.velocity(x)).ravel()
-        phase /= np.linalg.norm(phase)
-        spin = rotation_generator(x).ravel()
-        spin /= np.linalg.norm(spin)
-        tw = tangent * scale
-
-        def matvec(du, x=x, end=end, flow=flow, period=period, rotation=rotation,
-                   col_p=col_p, col_t=col_t, col_th=col_th, phase=phase, spin=spin, tw=tw):
-            du = np.asarray(du, dtype=float).ravel()
-            dx = du[:n3]
-            jv = flow.jvp(x, period, end, dx)
-            top = (rotate_z(centre(jv), -rotation).ravel() - dx + col_t * du[n3]
-                   + col_th * du[n3 + 1] + col_p * du[n3 + 2])
-            return np.concatenate([top, [phase @ dx, spin @ dx, tw @ du]])
-
-        op = LinearOperator((n3 + 3, n3 + 3), matvec=matvec, dtype=float)
+        op = bordered_operator(flow, x, period, rotation, end, column=col_p,
+                               row=tangent * scale)
         rhs = np.concatenate([-r.ravel(), [0.0, 0.0, -arc]])
         du, _ = gmres(op, rhs, rtol=gmres_tolerance, atol=0.0, restart=200, maxiter=1)
         largest = float(np.max(np.linalg.norm(du[:n3].reshape(x.shape), axis=1)))
@@ -253,8 +237,8 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
         add(value, current, flow)
     direction = math.copysign(1.0, stop - start)
     for _ in range(3 * points):
-        if (branch[-1].value - stop) * direction >= -1e-12 * max(1.0, abs(stop)):
-            break
+        if (branch[-1].value - stop) * direction >= -1e-2 * abs(step_p):
+            break  # at STOP (within a hundredth of a step) or past it
         a, b = branch[-2], branch[-1]
         ua = np.concatenate([a.orbit.positions.ravel(), [a.orbit.period, a.orbit.rotation,
                                                          a.value]])

@@ -35,7 +35,7 @@ from scipy.sparse.linalg import LinearOperator, gmres
 from knotmm.errors import SimulationFault
 from knotmm.orbit.flow import centre, rms, rotate_z, rotation_generator
 
-__all__ = ["Orbit", "best_rotation", "residual", "solve_orbit"]
+__all__ = ["Orbit", "best_rotation", "bordered_operator", "residual", "solve_orbit"]
 
 log = logging.getLogger(__name__)
 
@@ -117,25 +117,34 @@ def residual(flow, x: np.ndarray, period: float, rotation: float):
     return rotate_z(centre(end), -rotation) - x, end
 
 
-def _bordered_operator(flow, x, period, rotation, end):
-    """The Newton matrix as a LinearOperator on ``(dx (3N), dT, dtheta)``."""
+def bordered_operator(flow, x, period, rotation, end, column=None, row=None):
+    """The Newton matrix of the orbit condition as a LinearOperator.
+
+    On ``(dx (3N), dT, dtheta)``; with ``column`` (``dr/dp``, shape (3N,)) and ``row`` (shape
+    (3N + 3,)) one more unknown ``dp`` and one more equation ``row . du`` (the arclength
+    condition of :mod:`knotmm.orbit.continuation`).
+    """
     n3 = x.size
-    f_end = flow.velocity(end)
-    col_t = rotate_z(centre(f_end), -rotation).ravel()
+    col_t = rotate_z(centre(flow.velocity(end)), -rotation).ravel()
     col_theta = -rotation_generator(rotate_z(centre(end), -rotation)).ravel()
     phase = centre(flow.velocity(x)).ravel()
     phase /= np.linalg.norm(phase)
     spin = rotation_generator(centre(x)).ravel()
     spin /= np.linalg.norm(spin)
+    size = n3 + 2 + (column is not None)
 
     def matvec(u):
         u = np.asarray(u, dtype=float).ravel()
         dx = u[:n3]
         jv = flow.jvp(x, period, end, dx)
         top = rotate_z(centre(jv), -rotation).ravel() - dx + col_t * u[n3] + col_theta * u[n3 + 1]
-        return np.concatenate([top, [phase @ dx, spin @ dx]])
+        tail = [phase @ dx, spin @ dx]
+        if column is not None:
+            top = top + column * u[n3 + 2]
+            tail.append(row @ u)
+        return np.concatenate([top, tail])
 
-    return LinearOperator((n3 + 2, n3 + 2), matvec=matvec, dtype=float)
+    return LinearOperator((size, size), matvec=matvec, dtype=float)
 
 
 def solve_orbit(flow, x0: np.ndarray, period: float, rotation: float, *,
@@ -180,7 +189,7 @@ def solve_orbit(flow, x0: np.ndarray, period: float, rotation: float, *,
             iterations -= 1
             message = "converged"
             break
-        op = _bordered_operator(flow, x, period, rotation, end)
+        op = bordered_operator(flow, x, period, rotation, end)
         rhs = np.concatenate([-r.ravel(), [0.0, 0.0]])
         du, info = gmres(op, rhs, rtol=gmres_tolerance, atol=0.0, restart=max_krylov,
                          maxiter=1)

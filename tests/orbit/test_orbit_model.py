@@ -140,3 +140,31 @@ def test_leading_exponent_predicts_a_plain_run(orbit40, floquet40):
     rate = np.polyfit(t[3:], np.log(amplitudes[3:]), 1)[0]
     assert res.leading_exponent > 0
     assert rate == pytest.approx(res.leading_exponent, rel=0.10)
+
+
+@pytest.mark.slow
+def test_arclength_continuation_lands_on_orbits_of_the_model(orbit40):
+    """Each point of a pseudo-arclength branch is the orbit at its parameter: solving at that
+    parameter from scratch (plain Newton at fixed p) gives the same period and rotation."""
+    from knotmm.model.parameters import ChainModel
+    from knotmm.orbit.continuation import continue_orbit
+    from knotmm.orbit.flow import make_flow
+    from knotmm.orbit.shooting import solve_orbit
+
+    _, orbit, start = orbit40
+
+    def flow_for(model, positions, step=None):
+        return make_flow(positions, model, step)
+
+    branch = continue_orbit(orbit, start.config, "model.bending_stiffness", 5.0, 7.0,
+                            flow_for, points=3, modes=0)
+    values = [p.value for p in branch]
+    assert values == sorted(values) and len(values) in (3, 4)
+    assert values[-1] == pytest.approx(7.0, abs=0.01)
+    last = branch[-1]
+    model = ChainModel.from_config(start.config.replace({"model.bending_stiffness": last.value}))
+    direct = solve_orbit(make_flow(last.orbit.positions, model, last.orbit.timestep),
+                         orbit.positions, orbit.period, orbit.rotation, tolerance=1e-9)
+    assert direct.converged
+    assert direct.period == pytest.approx(last.orbit.period, rel=1e-6)
+    assert direct.rotation == pytest.approx(last.orbit.rotation, rel=1e-5)
