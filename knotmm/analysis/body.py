@@ -246,7 +246,9 @@ def inclination_summary(body: BodyFrame, window: slice | None = None) -> dict:
         maximum by more than 5 degrees), ``flips`` (count, times, directions),
         ``flips_per_100_tau``, ``torus_fraction``, ``torus_fraction_window``,
         ``first_torus_lifetime`` (tau_d: the first stretch of toroidal frames from t = 0; 0
-        if frame 0 is not toroidal),
+        if frame 0 is not toroidal; None when every frame is toroidal: then only
+        ``first_torus_lifetime_lower_bound``, the run's span, is known),
+        ``first_torus_lifetime_censored``,
         ``max_turn_deg``, ``criterion``.
     """
     inc, t = body.inclination, body.times
@@ -274,7 +276,9 @@ def inclination_summary(body: BodyFrame, window: slice | None = None) -> dict:
         "flips_per_100_tau": 100.0 * body.flips.count / span if span > 0 else None,
         "torus_fraction": float(body.toroidal.mean()),
         "torus_fraction_window": float(body.toroidal[sel].mean()),
-        "first_torus_lifetime": n_first * dt if n_first < len(t) else span,
+        "first_torus_lifetime": n_first * dt if n_first < len(t) else None,
+        "first_torus_lifetime_censored": bool(n_first >= len(t)),
+        "first_torus_lifetime_lower_bound": span if n_first >= len(t) else None,
         "window": [float(t_w[0]), float(t_w[-1])],
         "max_turn_deg": body.max_turn_deg,
         "tilted_deg": TILTED_DEG,

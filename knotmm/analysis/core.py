@@ -34,7 +34,7 @@ from knotmm.analysis.topology import (
     mean_writhe,
     rotation_sense,
 )
-from knotmm.analysis.window import steady_window
+from knotmm.analysis.window import MIN_FRAMES, steady_window
 from knotmm.errors import ConfigError
 from knotmm.io.run_data import RunData, load_run
 from knotmm.io.rundir import ANALYSIS_FILE, writing
@@ -111,11 +111,18 @@ def analyze(
         scan = knot_types(
             times, positions, 0, len(times) - 1, samples=knot_samples, identify=identify
         )
-        if scan.changed_frame is not None and scan.changed_frame >= 2:
+        if scan.changed_frame is not None and scan.changed_frame >= MIN_FRAMES:
             n_usable = int(scan.changed_frame)
             notes.append(
                 f"the knot type changed at t = {scan.changed_at:g} tau_d "
                 f"({scan.initial} -> {scan.end}): the window ends before it"
+            )
+        elif scan.changed_frame is not None:
+            # too early for a window before it: the whole-run measures still stand
+            notes.append(
+                f"the knot type changed at t = {scan.changed_at:g} tau_d "
+                f"({scan.initial} -> {scan.end}), before the {MIN_FRAMES} frames a window "
+                f"needs: the window is looked for in the whole run and may include the change"
             )
     window = steady_window(times[:n_usable], positions[:n_usable], t_from=t_from, t_to=t_to)
     # body frame: swirl detection, relaxation, torus shape and tilt (knotmm.analysis.regimes)

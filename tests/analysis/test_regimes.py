@@ -89,6 +89,10 @@ def test_flipping_torus_flips_counted_and_window_between_them(tmp_path):
     assert 40.0 < d["window"][0] and d["window"][1] < 122.0
     assert d["body_frame"]["window_inclination_max_deg"] <= 30.0
     assert d["torus_fraction"] == 1.0
+    # a flat torus in every frame: the first stretch's length is not measured, only bounded
+    assert d["body_frame"]["first_torus_lifetime"] is None
+    assert d["body_frame"]["first_torus_lifetime_censored"] is True
+    assert d["body_frame"]["first_torus_lifetime_lower_bound"] == pytest.approx(200.5)
     assert d["tau_swirl_body"] == pytest.approx(20.0, rel=1e-3)
     # upside down between the flips: seen from above it turns the other way
     assert d["rotation_sense"] == "clockwise"
