@@ -67,15 +67,15 @@ h (tau_d)   euler_maruyama      ito_heun
 =========== =================== ==============
 
 Use ``ito_heun`` with ``h = 0.002`` at ``Pe ~ 2`` (``euler_maruyama`` needs ``h <= 0.001``
-for the same fidelity of bond fluctuations), or ``leimkuhler_matthews`` with ``h = 0.01``
-(exact stationary variance of a harmonic mode at any stable step; one velocity per step).
-The table is the harmonic-mode formula at ``lambda ~ 120``; measured on T(2,3), N = 90 at
-Pe = 2 (``benchmarks/README.md``) the chain's bond modes are softer: ``ito_heun`` at 0.002
-gives a bond-length variance ratio of 1.0007 +- 0.003, and at 0.01 the chain breaks (a bond
-past 3 d within 4 tau_d) rather than showing the 0.53 of the table;
-``leimkuhler_matthews`` at 0.01 gives 0.996-1.000. On T(2,3), N = 90 at Pe = 2 this gave a bond
+for the same fidelity of bond fluctuations). On T(2,3), N = 90 at Pe = 2 this gave a bond
 length standard deviation of 0.098 d (0.100 d at h = 0.001; ``sqrt(kT/B)`` = 0.1 d) and the
-same gyration-tensor eigenvalues as h = 0.001 within their fluctuations.
+same gyration-tensor eigenvalues as h = 0.001 within their fluctuations. Or use
+``leimkuhler_matthews`` with ``h = 0.01`` (exact stationary variance of a harmonic mode at
+any stable step; one velocity per step). The table is the harmonic-mode formula at
+``lambda ~ 120``; measured on the same chain (``benchmarks/README.md``) the bond modes are
+softer: ``ito_heun`` at 0.002 gives a bond-length variance ratio of 1.0007 +- 0.003, and at
+0.01 the chain breaks (a bond past 3 d within 4 tau_d) rather than showing the 0.53 of the
+table; ``leimkuhler_matthews`` at 0.01 gives 0.996-1.000.
 
 The noise ``B xi`` and the random stream come from :mod:`knotmm.dynamics.noise`; names,
 default steps and the choice of integrator for ``run.integrator = "auto"`` from

@@ -55,6 +55,7 @@ __all__ = [
     "RK23",
     "RKC2",
     "StepSizeUnderflow",
+    "power_iteration",
 ]
 
 Rhs = Callable[[np.ndarray], np.ndarray]
@@ -313,6 +314,51 @@ def _chebyshev_coefficients(s: int, damping: float = 2.0 / 13.0):
     return mu, nu, mu_t, gamma_t, beta
 
 
+def power_iteration(rhs: Rhs, y: np.ndarray, f0: np.ndarray, v: np.ndarray,
+                    iterations: int = 30, rtol: float = 0.01) -> tuple[float, np.ndarray]:
+    """Largest ``|eigenvalue|`` of ``dv/dy`` at ``y`` by nonlinear power iteration.
+
+    Products come from finite differences ``(v(y + e) - v(y)) / |e|`` with ``|e|`` = 1e-3 d
+    per coordinate (large enough for the single-precision forces of OpenMM's CPU platform,
+    small against the steric length).
+
+    Parameters
+    ----------
+    rhs : callable
+        ``y -> v(y)``, shapes (n_beads, 3), in d/tau_d.
+    y, f0 : ndarray, shape (n_beads, 3)
+        The point, in d, and ``rhs(y)``.
+    v : ndarray, shape (n_beads, 3)
+        Starting direction (any scale).
+    iterations : int
+        Rounds at most.
+    rtol : float
+        Stop when the estimate changes by at most this fraction (0: run every round).
+
+    Returns
+    -------
+    sigma : float
+        The estimate, in 1/tau_d (0 if no round gave a finite, non-zero product).
+    v : ndarray, shape (n_beads, 3)
+        The last direction (scaled to ``|e|``), to start the next estimate from.
+    """
+    size = 1e-3 * math.sqrt(y.size)
+    v = v * (size / max(np.linalg.norm(v), 1e-300))
+    sigma = 0.0
+    for _ in range(iterations):
+        dv = rhs(y + v) - f0
+        norm = float(np.linalg.norm(dv))
+        if not math.isfinite(norm) or norm == 0.0:
+            break
+        sigma_new = norm / size
+        v = dv * (size / norm)
+        if abs(sigma_new - sigma) <= rtol * sigma_new:
+            sigma = sigma_new
+            break
+        sigma = sigma_new
+    return sigma, v
+
+
 class RKC2(_Adaptive):
     """Adaptive second-order Runge-Kutta-Chebyshev (damped, s stages). The default.
 
@@ -382,33 +428,16 @@ class RKC2(_Adaptive):
         return self._coeff_cache[s]
 
     def spectral_radius(self, rhs: Rhs, y: np.ndarray, f0: np.ndarray) -> float:
-        """Estimate the spectral radius of ``dv/dy`` at ``y`` by nonlinear power iteration.
+        """Estimate the spectral radius of ``dv/dy`` at ``y`` (:func:`power_iteration`).
 
-        Uses finite differences ``(v(y + e) - v(y)) / |e|`` with ``|e|`` = 1e-3 d per
-        coordinate (large enough for the single-precision forces of OpenMM's CPU platform,
-        small against the steric length), starting from the last eigenvector. Returns 1.2
-        times the converged estimate (RKC's safety margin).
+        Starts from the last eigenvector (a seeded random vector the first time), stops when
+        the estimate changes by under 1 % or after 30 rounds, and returns 1.2 times it
+        (RKC's safety margin).
         """
-        n = y.size
-        size = 1e-3 * math.sqrt(n)
         v = self._eig
         if v is None or v.shape != y.shape:
-            rng = np.random.default_rng(12345)
-            v = rng.standard_normal(y.shape)
-        v = v * (size / max(np.linalg.norm(v), 1e-300))
-        sigma = 0.0
-        for _ in range(30):
-            dv = rhs(y + v) - f0
-            norm = float(np.linalg.norm(dv))
-            if not math.isfinite(norm) or norm == 0.0:
-                break
-            sigma_new = norm / size
-            v = dv * (size / norm)
-            if abs(sigma_new - sigma) <= 0.01 * sigma_new:
-                sigma = sigma_new
-                break
-            sigma = sigma_new
-        self._eig = v
+            v = np.random.default_rng(12345).standard_normal(y.shape)
+        sigma, self._eig = power_iteration(rhs, y, f0, v)
         return 1.2 * max(sigma, 1.0)
 
     def step(self, rhs, y, max_dt=math.inf):

@@ -28,13 +28,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
 
+from knotmm.errors import ConfigError
 from knotmm.orbit.flow import centre, rotate_z, rotation_generator
 
 __all__ = ["FloquetResult", "NEUTRAL_NAMES", "floquet", "monodromy"]
 
-#: Names of the symmetry directions, in the order of :func:`symmetry_vectors`.
-NEUTRAL_NAMES = ("translation x", "translation y", "translation z", "rotation about z",
-                 "time shift")
+#: The symmetry of each neutral multiplier, in the order :func:`floquet` reports them.
+NEUTRAL_NAMES = ("translation z", "translation x, y (co-rotating frame)",
+                 "translation x, y (co-rotating frame)", "rotation about z", "time shift")
 
 
 @dataclass
@@ -81,7 +82,10 @@ class FloquetResult:
 
 
 def symmetry_vectors(flow, x: np.ndarray) -> np.ndarray:
-    """The five symmetry directions at ``x``, shape (5, n_beads, 3) (see :data:`NEUTRAL_NAMES`)."""
+    """The symmetry directions at ``x``, shape (5, n_beads, 3).
+
+    In this order: translations along x, y, z, the rotation about z, the time shift.
+    """
     n = x.shape[0]
     out = np.zeros((5, n, 3))
     for axis in range(3):
@@ -92,14 +96,14 @@ def symmetry_vectors(flow, x: np.ndarray) -> np.ndarray:
 
 
 def monodromy(flow, orbit):
-    """``M`` as a function ``v (3N,) -> M v (3N,)`` and the end state ``phi_T(x)``."""
+    """``M`` as a function ``v (3N,) -> M v (3N,)``."""
     x, period, rotation = orbit.positions, orbit.period, orbit.rotation
     end = flow(x, period)
 
     def apply(v):
         return rotate_z(flow.jvp(x, period, end, v), -rotation).ravel()
 
-    return apply, end
+    return apply
 
 
 def floquet(flow, orbit, k: int = 10, tolerance: float = 1e-6, seed: int = 0) -> FloquetResult:
@@ -121,14 +125,12 @@ def floquet(flow, orbit, k: int = 10, tolerance: float = 1e-6, seed: int = 0) ->
     -------
     FloquetResult
     """
-    from knotmm.errors import ConfigError
-
     x = orbit.positions
     n3 = x.size
     if not 1 <= int(k) <= n3 - 8:
         raise ConfigError(f"modes = {k!r}: expected 1 .. {n3 - 8} for {x.shape[0]} beads")
     start = flow.n_flows
-    apply, _ = monodromy(flow, orbit)
+    apply = monodromy(flow, orbit)
     gens = symmetry_vectors(flow, x).reshape(5, n3)
     q, _ = np.linalg.qr(gens.T)  # (3N, 5), orthonormal basis of S
     mq = np.column_stack([apply(q[:, j]) for j in range(5)])
@@ -140,8 +142,6 @@ def floquet(flow, orbit, k: int = 10, tolerance: float = 1e-6, seed: int = 0) ->
     translations = np.linalg.eigvals(block[:3, :3])
     order = np.argsort(np.abs(translations.imag), kind="stable")
     neutral = np.concatenate([translations[order], [block[3, 3], block[4, 4]]])
-    names = ["translation z", "translation x, y (co-rotating frame)",
-             "translation x, y (co-rotating frame)", "rotation about z", "time shift"]
 
     def quotient(v):
         v = np.asarray(v, dtype=float).ravel()
@@ -165,7 +165,7 @@ def floquet(flow, orbit, k: int = 10, tolerance: float = 1e-6, seed: int = 0) ->
         multipliers=values,
         modes=vectors,
         neutral=neutral,
-        neutral_names=names,
+        neutral_names=list(NEUTRAL_NAMES),
         period=orbit.period,
         n_flows=flow.n_flows - start,
         converged=converged,

@@ -192,27 +192,20 @@ def stable_step(flow: FlowMap, x: np.ndarray, largest: float = DEFAULT_STEP,
 
     The Jacobian of ``v(x) = mu(x) F(x)`` is ``-mu H`` (``H`` the Hessian of the energy),
     similar to a symmetric matrix, so its eigenvalues are real; the largest in size,
-    ``lambda`` (1/tau_d), comes from a power iteration with finite-difference products.
-    Heun is stable for ``h lambda <= 2``; the step returned is
-    ``min(largest, 2 STABILITY_MARGIN / lambda)``.
+    ``lambda`` (1/tau_d), comes from ``iterations`` rounds of
+    :func:`knotmm.dynamics.deterministic.power_iteration`. Heun is stable for
+    ``h lambda <= 2``; the step returned is ``min(largest, 2 STABILITY_MARGIN / lambda)``.
 
     Returns
     -------
     step, stiffness : float
         In tau_d and 1/tau_d.
     """
+    from knotmm.dynamics.deterministic import power_iteration
+
     x = np.asarray(x, dtype=float)
-    f0 = flow.velocity(x)
-    v = np.random.default_rng(seed).standard_normal(x.shape)
-    v -= v.mean(axis=0)
-    lam = 0.0
-    for _ in range(iterations):
-        v /= np.linalg.norm(v)
-        eps = 1e-6
-        w = (flow.velocity(x + eps * v) - f0) / eps
-        w -= w.mean(axis=0)
-        lam = float(np.linalg.norm(w))
-        v = w
+    start = np.random.default_rng(seed).standard_normal(x.shape)
+    lam, _ = power_iteration(flow.velocity, x, flow.velocity(x), start, iterations, rtol=0.0)
     if not lam > 0:
         return float(largest), 0.0
     return float(min(largest, 2 * STABILITY_MARGIN / lam)), lam

@@ -183,11 +183,8 @@ def solve_orbit(flow, x0: np.ndarray, period: float, rotation: float, *,
     res = rms(r)
     history = [res]
     message = "reached the iteration limit"
-    iterations = 0
-    for iterations in range(1, max_iterations + 1):
+    for iteration in range(1, max_iterations + 1):
         if res <= tolerance:
-            iterations -= 1
-            message = "converged"
             break
         op = bordered_operator(flow, x, period, rotation, end)
         rhs = np.concatenate([-r.ravel(), [0.0, 0.0]])
@@ -199,15 +196,13 @@ def solve_orbit(flow, x0: np.ndarray, period: float, rotation: float, *,
         accepted = False
         for _ in range(8):
             trial = (x + scale * dx, period + scale * du[-2], rotation + scale * du[-1])
-            try:
-                if not trial[1] > 0:
-                    raise SimulationFault("non-positive period")
-                r_new, end_new = residual(flow, *trial)
-            except SimulationFault:
-                scale /= 2
-                continue
-            if rms(r_new) < res:
-                accepted = True
+            if trial[1] > 0:  # else: halve, as for a chain that breaks on the way
+                try:
+                    r_new, end_new = residual(flow, *trial)
+                    accepted = rms(r_new) < res
+                except SimulationFault:
+                    pass
+            if accepted:
                 break
             scale /= 2
         if not accepted:
@@ -217,10 +212,7 @@ def solve_orbit(flow, x0: np.ndarray, period: float, rotation: float, *,
         r, end, res = r_new, end_new, rms(r_new)
         history.append(res)
         log.info("newton %d: residual %.3e d, T = %.8f, theta = %.8f, step %.3g, gmres %s",
-                 iterations, res, period, rotation, scale, info)
-    else:
-        if res <= tolerance:
-            message = "converged"
+                 iteration, res, period, rotation, scale, info)
     converged = res <= tolerance
     if converged:
         message = "converged"
@@ -231,7 +223,7 @@ def solve_orbit(flow, x0: np.ndarray, period: float, rotation: float, *,
         displacement=end.mean(axis=0) - x.mean(axis=0),
         residual=res,
         converged=converged,
-        iterations=iterations,
+        iterations=len(history) - 1,  # Newton steps taken
         history=history,
         message=message,
         n_flows=flow.n_flows - start_flows,
