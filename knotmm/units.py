@@ -16,6 +16,10 @@ boundary.
 
 from __future__ import annotations
 
+import math
+
+from knotmm.errors import ConfigError
+
 #: Angstrom per bead diameter in DCD and PDB files (1 d = 1 nm = 10 A).
 ANGSTROM_PER_D = 10.0
 #: nm per bead diameter inside OpenMM.
@@ -36,3 +40,17 @@ def d_to_angstrom(x):
 def angstrom_to_d(x):
     """Convert lengths in Angstrom (from DCD/PDB files) to bead diameters."""
     return x / ANGSTROM_PER_D
+
+
+def thermal_energy(peclet: float) -> float:
+    """``kT = F0 d / Pe`` in F0 d (model units); 0 for ``Pe = inf``.
+
+    Raises
+    ------
+    ConfigError
+        For ``Pe <= 0`` or NaN.
+    """
+    peclet = float(peclet)
+    if not peclet > 0:  # also NaN
+        raise ConfigError(f"run.peclet = {peclet!r}: must be > 0 (inf: deterministic)")
+    return 0.0 if math.isinf(peclet) else 1.0 / peclet

@@ -35,6 +35,13 @@ from knotmm.config import RunConfig, resolve_stepping
 from knotmm.dynamics.registry import AUTO, auto_deterministic
 from knotmm.engine.checkpoint import CheckpointReporter, read_checkpoint
 from knotmm.engine.interrupt import StopRequested, describe_signal, stop_signal
+from knotmm.engine.knot_checks import (
+    TemplateKnotCheck,
+    check_stop_on_change,
+    finish_checks,
+    knot_watch,
+    record_checks,
+)
 from knotmm.engine.reporters import DCDReporter, ObservablesReporter, ProgressReporter
 from knotmm.engine.simulation import Simulation
 from knotmm.errors import (
@@ -137,6 +144,7 @@ def run(
     directory: str | os.PathLike | None = None,
     overwrite: bool = False,
     progress: bool | None = None,
+    wait_for_checks: bool = False,
 ) -> RunResult:
     """Run a simulation described by ``cfg`` and write its run directory.
 
@@ -151,6 +159,11 @@ def run(
     progress : bool, optional
         Show a progress bar; default: a bar when standard error is a terminal, else a line
         every 10 % or 30 s.
+    wait_for_checks : bool, optional
+        At the end, wait for the knot checks still under way even while the knot worker is
+        starting (topoly's import, seconds). By default they are waited for only once it is
+        up, and otherwise recorded as not made (``knot_type_checks_dropped``, a note for the
+        template), so that a short run does not wait for topoly.
 
     Returns
     -------
@@ -177,8 +190,8 @@ def run(
     by_stiffness = cfg["run.integrator"] == AUTO and not math.isfinite(cfg["run.peclet"])
     cfg = cfg.replace({"run.integrator": name, "run.timestep": timestep})
     integrator_from_config(cfg)  # checks the integrator against run.peclet before the template
-    _check_stop_on_change(cfg)
-    template = build_template(cfg)
+    check_stop_on_change(cfg)
+    template = build_template(cfg, identify="later")  # judged beside the run
     if template.resolved:
         cfg = cfg.replace(template.resolved)
     if cfg["output.directory"] != str(directory):
@@ -217,13 +230,15 @@ def run(
     except BaseException:
         lock.release()
         raise
-    return _drive(sim, cfg, directory, facts, None, progress, wall0, lock)
+    return _drive(sim, cfg, directory, facts, None, progress, wall0, lock, template,
+                  wait_for_checks)
 
 
 def resume(
     directory: str | os.PathLike,
     progress: bool | None = None,
     duration: float | None = None,
+    wait_for_checks: bool = False,
 ) -> RunResult:
     """Continue a run that was stopped or killed, from its last checkpoint.
 
@@ -238,6 +253,8 @@ def resume(
         As for :func:`run`.
     duration : float, optional
         A new ``run.duration``, in tau_d: extends the run (a finished one too).
+    wait_for_checks : bool, optional
+        As for :func:`run`.
 
     Raises
     ------
@@ -295,7 +312,8 @@ def resume(
             raise OutputError(describe_os_error(directory, exc)) from None
         raise
     log.info("resuming %s at t = %g tau_d (step %d)", directory, sim.time, sim.currentStep)
-    return _drive(sim, cfg, directory, facts, counters, progress, wall0, lock)
+    return _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
+                  wait_for_checks=wait_for_checks)
 
 
 def _checkpoint_engine(directory: Path, engine: str) -> str:
@@ -344,8 +362,13 @@ def _check_same_physics(directory: Path, cfg: RunConfig, stored: dict | None) ->
         )
 
 
-def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock) -> RunResult:
-    """Attach the reporters, run to ``run.duration``, and record the outcome in run.toml."""
+def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
+           template=None, wait_for_checks=False) -> RunResult:
+    """Attach the reporters, run to ``run.duration``, and record the outcome in run.toml.
+
+    ``template``: a new run's :class:`knotmm.shapes.builder.Template`, whose knot type is
+    judged at the first frame after the knot worker answers (a wrong one stops the run).
+    """
     resuming = counters is not None
     counters = counters or {"frames": 0, "rows": 0, "checkpoints": 0, "checks": 0}
     frame_interval = cfg["output.frame_interval"]
@@ -365,9 +388,12 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock) -> RunRe
             obs = ObservablesReporter(directory / OBSERVABLES_FILE, obs_interval,
                                       append=resuming, first_index=counters["rows"])
         reporters += [dcd, obs]
-        watch = _knot_watch(sim, cfg, facts, counters, resuming)
+        watch = knot_watch(sim, cfg, facts, counters, resuming)
         if watch is not None:
             reporters.append(watch)
+        judge = TemplateKnotCheck(template, facts, frame_interval)
+        if template is not None and template.knot_type_pending:
+            reporters.append(judge)
         config = cfg.to_dict()
 
         def current_counters(next_checkpoint):
@@ -390,8 +416,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock) -> RunRe
                 # a resumed run first makes any report due at its start (a fault while
                 # writing a frame leaves it due)
                 sim.run(duration - sim.time, write_at_start=True)
-            if watch is not None:
-                watch.collect(wait=True)  # checks still running beside the simulation
+            finish_checks(judge, watch, wait_for_checks)  # still running beside the run
             status, message = STATUS_FINISHED, None
         except SimulationFault as exc:
             status, message = STATUS_FAULT, str(exc)
@@ -456,7 +481,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock) -> RunRe
             final_max_bond=float(np.max(sim.bond_lengths())),
         )
         if watch is not None:
-            _record_checks(facts, watch)
+            record_checks(facts, watch)
         try:
             with _signals_held():  # a second Ctrl-C must not leave status = "running"
                 write_run_toml(directory, cfg, facts)
@@ -485,53 +510,6 @@ def _signals_held():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
         for sig in pending:
             signal.raise_signal(sig)
-
-
-def _check_stop_on_change(cfg) -> None:
-    """A run asked to stop at a change of knot type must be able to see one."""
-    from knotmm.knots.identify import topoly_available
-
-    if (cfg["run.on_topology_change"] == "stop" and cfg["run.topology_check_interval"] > 0
-            and not topoly_available()):
-        raise ConfigError(
-            'run.on_topology_change = "stop" needs knot-type checks, and topoly is not '
-            "installed: pip install 'knotmm[knots]', or set run.on_topology_change = \"warn\" "
-            "(or run.topology_check_interval = 0) to run unchecked"
-        )
-
-
-def _knot_watch(sim, cfg, facts, counters, resuming):
-    """The knot-type reporter of a run, or None (checks off, or no topoly)."""
-    from knotmm.engine.reporters import KnotTypeWatch
-    from knotmm.knots.identify import topoly_available
-
-    if not (cfg["run.topology_check_interval"] > 0 and topoly_available()):
-        return None
-    expected = facts.get("knot_type") if resuming else None
-    watch = KnotTypeWatch(
-        cfg["run.topology_check_interval"],
-        expected=expected,
-        on_change=cfg["run.on_topology_change"],
-        first_index=max(1, counters.get("checks", 0)),
-    )
-    if expected is None:  # identified in the worker beside the run, not before it
-        watch.identify_start(sim.positions)
-    return watch
-
-
-def _record_checks(facts: dict, watch) -> None:
-    if watch.start_type is not None:
-        facts["knot_type_start"] = watch.start_type
-    facts["knot_type"] = watch.current
-    # only checks that ran: not those whose worker failed (watch.skipped) or were dropped
-    facts["knot_type_checks"] = int(facts.get("knot_type_checks", 0)) + watch.checks
-    if watch.dropped:
-        facts["knot_type_checks_dropped"] = (
-            int(facts.get("knot_type_checks_dropped", 0)) + watch.dropped
-        )
-    changes = list(facts.get("knot_type_changes", []))
-    changes += [{"time": t, "from": str(a), "to": str(b)} for t, a, b in watch.changes]
-    facts["knot_type_changes"] = changes
 
 
 def _close(*reporters) -> None:

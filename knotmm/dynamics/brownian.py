@@ -98,7 +98,7 @@ from knotmm.dynamics.noise import (
     encode_rng_state,
     noise_rng,
 )
-from knotmm.errors import ConfigError
+from knotmm.units import thermal_energy
 
 __all__ = [
     "EulerMaruyama",
@@ -112,21 +112,6 @@ log = logging.getLogger(__name__)
 
 
 # -- units ------------------------------------------------------------------------------------
-def thermal_energy(peclet: float) -> float:
-    """``kT = F0 d / Pe`` in F0 d (model units); 0 for ``Pe = inf``.
-
-    Raises
-    ------
-    ConfigError
-        For ``Pe <= 0`` or NaN.
-    """
-    peclet = float(peclet)
-    if not peclet > 0:  # also NaN
-        raise ConfigError(f"run.peclet = {peclet!r}: must be > 0 (inf: deterministic)")
-    return 0.0 if math.isinf(peclet) else 1.0 / peclet
-
-
-
 class StochasticIntegrator(Integrator):
     """Base class of the fixed-step Brownian integrators (Ito, no drift correction).
 

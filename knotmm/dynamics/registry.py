@@ -33,6 +33,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from knotmm.errors import ConfigError
+from knotmm.units import thermal_energy
 
 __all__ = [
     "AUTO",
@@ -301,8 +302,6 @@ def integrator_from_config(cfg: Mapping):
     -------
     knotmm.dynamics.deterministic.Integrator
     """
-    from knotmm.dynamics.brownian import thermal_energy
-
     name, timestep = resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
     peclet = float(cfg["run.peclet"])
     thermal_energy(peclet)  # checks the range

@@ -64,6 +64,24 @@ class PluginEngine:
         self.rpy = from_python_integrator(integrator, threads=threads)
         self.adaptive = bool(getattr(integrator, "adaptive", False))
 
+    def stiffness(self, sim, rkc2) -> float:
+        """The plugin rkc2's spectral-radius estimate at ``sim``'s positions, in 1/tau_d.
+
+        A throwaway Context with a plugin copy of ``rkc2`` (a
+        :class:`knotmm.dynamics.deterministic.RKC2`) takes one step from the positions; the
+        estimate is made at the step's start (a rejected try makes it again there).
+        """
+        from knotmm.plugin import from_python_integrator
+
+        probe = from_python_integrator(rkc2, threads=self.rpy.getNumThreads())
+        context = openmm.Context(sim.system, probe, sim.context.getPlatform())
+        try:
+            context.setPositions(sim.context.getState(getPositions=True).getPositions())
+            probe.step(1)
+            return float(probe.getSpectralRadius())
+        finally:
+            del context
+
     # -- reading the Context ------------------------------------------------------------
     def _counts(self) -> tuple[int, int, int]:
         r = self.rpy
@@ -178,6 +196,17 @@ class PluginEngine:
             f"this last good state is kept): {' '.join(message.split())}. Hint: "
             f"run.engine = \"python\" runs the same model with the Python integrators"
         )
+
+    # -- energies -----------------------------------------------------------------------
+    def group_energies(self, groups) -> list[float]:
+        """Energy of each force group at the Context's positions, in F0 d (one C++ call).
+
+        Evaluated as the steps evaluate forces, with the beads shifted to their centre of
+        mass (:meth:`knotmm.plugin.RPYIntegrator.getGroupEnergies`): an external field's
+        energy (gravity) is the shifted one. The Context and the integrator's state are left
+        as they were, so the run goes on bit for bit as without the call.
+        """
+        return list(self.rpy.getGroupEnergies(list(groups)))
 
     # -- checkpoints --------------------------------------------------------------------
     def checkpoint(self, sim) -> bytes:

@@ -36,7 +36,6 @@ import openmm
 from openmm import unit
 
 from knotmm.dynamics.deterministic import RK23, Integrator, StepSizeUnderflow
-from knotmm.dynamics.mobility import rpy_velocities
 from knotmm.engine.checkpoint import read_checkpoint, write_checkpoint
 from knotmm.engine.engines import PLUGIN, PYTHON, resolve_engine
 from knotmm.engine.interrupt import raise_if_requested
@@ -162,6 +161,7 @@ class Simulation:
         self.reporters: list = []
         self.last_velocity: np.ndarray | None = None
         self._held_stale = False
+        self._context_current = False  # the Context holds a translate of `positions`
         self._check_state(self.positions, initial=True)
         self._sync_context()
 
@@ -290,6 +290,7 @@ class Simulation:
         if self.model.segment_repulsion:
             shifted = site_positions(shifted, self.model)
         self.context.setPositions(shifted)
+        self._context_current = False
         state = self.context.getState(getForces=True)
         forces = state_array(state, "forces", shifted.shape[0])
         # forces on midpoint sites are already distributed onto their beads by OpenMM
@@ -297,6 +298,9 @@ class Simulation:
 
     def velocity(self, positions: np.ndarray) -> np.ndarray:
         """Bead velocities ``mu(r) F(r)``, shape (n_beads, 3), in d/tau_d."""
+        # imported here: a plugin-engine run never loads numba's kernels (about a second)
+        from knotmm.dynamics.mobility import rpy_velocities
+
         self.n_evaluations += 1
         return rpy_velocities(positions, self.forces(positions), threads=self.mobility_threads)
 
@@ -304,11 +308,14 @@ class Simulation:
         """Spectral radius of the velocity Jacobian at the current positions, in 1/tau_d.
 
         RKC's estimate (:meth:`knotmm.dynamics.deterministic.RKC2.spectral_radius`: a power
-        iteration by finite differences, times 1.2). Its evaluations are not counted in
+        iteration by finite differences, times 1.2; with the plugin engine, the plugin's
+        rkc2 makes the same estimate). Its evaluations are not counted in
         :attr:`n_evaluations`.
         """
         from knotmm.dynamics.deterministic import RKC2
 
+        if self._plugin is not None:  # the plugin's own estimate: no numba kernel to load
+            return self._plugin.stiffness(self, RKC2(self.integrator.timestep))
         counted = self.n_evaluations
         try:
             return RKC2(self.integrator.timestep).spectral_radius(
@@ -319,15 +326,29 @@ class Simulation:
     def energies(self, positions: np.ndarray | None = None) -> dict[str, float]:
         """Energy of each term (``bond``, ``bend``, ``steric``, ``gravity``) and ``total``.
 
-        In F0 d; gravity is ``g sum z`` with the true (unshifted) heights.
+        In F0 d; gravity is ``g sum z`` with the true (unshifted) heights. Each term is
+        evaluated at the positions shifted to their centre of mass, as forces are. With the
+        plugin engine and no ``positions``, one call
+        (:meth:`knotmm.engine.plugin_engine.PluginEngine.group_energies`) evaluates the four
+        groups at the Context's positions, which are these; otherwise one ``getState`` per
+        group.
         """
         pos = self.positions if positions is None else positions
         shift = pos.mean(axis=0)
-        self.context.setPositions(site_positions(pos - shift, self.model))
-        out = {}
-        for name, group in FORCE_GROUPS.items():
-            state = self.context.getState(getEnergy=True, groups={group})
-            out[name] = state.getPotentialEnergy().value_in_unit(unit.kilojoule_per_mole)
+        if self._plugin is not None and positions is None:
+            # One C++ call at the Context's positions (a translate of these), shifted there
+            # to their centre of mass as below: no setPositions, one evaluation per group.
+            if not self._context_current:
+                self._sync_context()
+            out = dict(zip(FORCE_GROUPS, self._plugin.group_energies(FORCE_GROUPS.values()),
+                           strict=True))
+        else:
+            self.context.setPositions(site_positions(pos - shift, self.model))
+            self._context_current = False
+            out = {}
+            for name, group in FORCE_GROUPS.items():
+                state = self.context.getState(getEnergy=True, groups={group})
+                out[name] = state.getPotentialEnergy().value_in_unit(unit.kilojoule_per_mole)
         out["gravity"] += self.model.gravity * shift[2] * self.n_beads
         out["total"] = sum(out.values())
         return out
@@ -366,6 +387,7 @@ class Simulation:
         self.context.setPositions(site_positions(self.positions, self.model))
         self.context.setTime(self.time)
         self.context.setStepCount(self.currentStep)
+        self._context_current = True
 
     # -- stepping ---------------------------------------------------------------------------
     def _underflow_fault(self, timestep: float, reason: str) -> SimulationFault:

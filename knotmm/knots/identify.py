@@ -15,7 +15,14 @@ import importlib.util
 from knotmm.knots.chirality import UNKNOWN
 from knotmm.knots.writhe import as_chain
 
-__all__ = ["UNKNOWN", "identify_knot", "start_worker", "topoly_available"]
+__all__ = [
+    "UNKNOWN",
+    "identify_knot",
+    "start_worker",
+    "submit_identification",
+    "topoly_available",
+    "worker_ready",
+]
 
 
 def topoly_available() -> bool:
@@ -35,6 +42,43 @@ def start_worker() -> bool:
     from knotmm.knots.worker import shared_worker
 
     return shared_worker().start()
+
+
+def worker_ready() -> bool:
+    """Whether the identification worker runs and has imported topoly (never waits).
+
+    Until then an identification waits for topoly's import (seconds); a caller that must
+    not wait (a run that is ending) judges only what is back.
+    """
+    if not topoly_available():
+        return False
+    from knotmm.knots.worker import shared_worker
+
+    return shared_worker().ready
+
+
+def submit_identification(
+    positions, chiral: bool = False, max_cross: int = 60, minimal: bool = True
+):
+    """Start :func:`identify_knot` in the worker and return at once.
+
+    Parameters are those of :func:`identify_knot`.
+
+    Returns
+    -------
+    handle or None
+        ``None`` without topoly; else a handle whose ``done()`` says (without waiting)
+        whether the name is back and whose ``result()`` waits for it (the value
+        :func:`identify_knot` returns).
+    """
+    x = as_chain(positions)
+    if x.ndim != 2:
+        raise ValueError(f"positions has shape {x.shape}: expected (n_beads, 3), one frame")
+    if not topoly_available():
+        return None
+    from knotmm.knots.worker import shared_worker
+
+    return shared_worker().submit(x, chiral=chiral, max_cross=max_cross, minimal=minimal)
 
 
 def identify_knot(
@@ -72,11 +116,5 @@ def identify_knot(
     ValueError
         For a wrong shape, fewer than 3 beads or non-finite coordinates.
     """
-    x = as_chain(positions)
-    if x.ndim != 2:
-        raise ValueError(f"positions has shape {x.shape}: expected (n_beads, 3), one frame")
-    if not topoly_available():
-        return None
-    from knotmm.knots.worker import shared_worker
-
-    return shared_worker().identify(x, chiral=chiral, max_cross=max_cross, minimal=minimal)
+    handle = submit_identification(positions, chiral, max_cross, minimal)
+    return None if handle is None else handle.result()

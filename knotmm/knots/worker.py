@@ -16,6 +16,9 @@ pipes carrying pickled messages (:class:`multiprocessing.connection.Connection`)
   keyword arguments of :func:`knotmm.knots.homfly.identify_here`;
 * reply ``(seq, name, messages)``: the knot name (or None when the worker could not
   compute it) and the warnings logged meanwhile (logged again here);
+* a first reply ``(0, None, [])`` once topoly is imported: the worker is ready
+  (:attr:`WorkerProcess.ready`), and a caller that must not wait for topoly's import (a run
+  ending) can tell a queue of quick identifications from a worker still starting;
 * end of file on the request pipe (the caller closed it, or died, even by SIGKILL): the
   worker exits.
 
@@ -65,6 +68,7 @@ class WorkerProcess:
         self._seq = 0
         self._waiting: set[int] = set()
         self._results: dict[int, str | None] = {}
+        self._ready = False  # the running worker has imported topoly
         self._pid = os.getpid()  # a forked child must not use (or kill) its parent's worker
 
     # -- process ----------------------------------------------------------------------------
@@ -83,6 +87,16 @@ class WorkerProcess:
     def running(self) -> bool:
         return self._proc is not None and self._proc.poll() is None
 
+    @property
+    def ready(self) -> bool:
+        """Whether the worker runs and has imported topoly (its answers then take
+        milliseconds to seconds, not the seconds of its start-up). Never waits."""
+        with self._lock:
+            self._forget_if_forked()
+            while not self._ready and self._recv is not None and self._recv.poll(0):
+                self._read(0)
+            return self._ready and self._recv is not None
+
     def _forget_if_forked(self) -> None:
         """In a child forked from the owner: drop the inherited pipes, leave the worker."""
         if os.getpid() != self._pid:
@@ -93,6 +107,7 @@ class WorkerProcess:
             self._waiting.clear()
             self._results.clear()
             self._generation += 1
+            self._ready = False
             self._pid = os.getpid()
 
     def start(self) -> bool:
@@ -133,6 +148,7 @@ class WorkerProcess:
         if why:
             log.warning("%s; the knot identifications under way are skipped", why)
         self._generation += 1
+        self._ready = False
         self._waiting.clear()
         self._results.clear()
         for conn in (self._send, self._recv):
@@ -166,6 +182,7 @@ class WorkerProcess:
             self._send = self._recv = None
             proc, self._proc = self._proc, None
             self._generation += 1
+            self._ready = False
             try:
                 proc.wait(timeout=0.5)  # an idle worker exits on end of file within ms
             except subprocess.TimeoutExpired:
@@ -221,6 +238,7 @@ class WorkerProcess:
             code = self._proc.poll() if self._proc is not None else None
             self._give_up(f"the knot-identification worker stopped (exit code {code})")
             return True
+        self._ready = True  # any reply, the first being the worker's "ready"
         for message in messages:
             log.warning("%s", message)
         if seq in self._waiting:
@@ -315,6 +333,11 @@ class IsolatedKnotIdentifier:
         """Start the worker now (in the background), so that the first check is quick."""
         self._worker.start()
 
+    @property
+    def ready(self) -> bool:
+        """Whether the worker has imported topoly (:attr:`WorkerProcess.ready`)."""
+        return self._worker.ready
+
     def __call__(self, positions) -> str | None:
         return self.submit(positions).result()
 
@@ -377,6 +400,10 @@ def main() -> int:
     logging.getLogger("knotmm").addHandler(collect)
     logging.getLogger("knotmm").setLevel(logging.WARNING)
     homfly.preload()
+    try:
+        replies.send((0, None, []))  # ready: topoly is imported
+    except OSError:
+        return 0
     while True:
         try:
             seq, positions, options = requests.recv()

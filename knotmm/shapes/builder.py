@@ -32,13 +32,21 @@ import openmm.app
 from knotmm.errors import TemplateError
 from knotmm.io.structure import read_structure
 from knotmm.knots.chirality import UNKNOWN, is_signed, signed_knot_type, unsigned_knot_type
+from knotmm.knots.identify import topoly_available
 from knotmm.model.system import ChainModel, chain_system, site_positions
 from knotmm.model.topology import bead_topology
-from knotmm.shapes.checks import BOND_TOLERANCE, TemplateCheck, check_template, closest_nonbonded
+from knotmm.shapes.checks import (
+    BOND_TOLERANCE,
+    TemplateCheck,
+    check_template,
+    closest_nonbonded,
+    submit_knot_check,
+)
 from knotmm.shapes.curves import braid_curve, torus_curve
 from knotmm.shapes.geometry import TooFewBeadsError, mirror_image, place_on_curve
 from knotmm.shapes.knotinfo import TORUS_NAMES, named_knot_word, symmetry_type
 from knotmm.shapes.resources import check_memory
+from knotmm.shapes.template import PendingKnotCheck, Template
 from knotmm.shapes.validation import (
     RUN_FILE_KEYS,
     check_int,
@@ -57,60 +65,6 @@ SCHEMA_MINOR_RADIUS = 0.6
 
 # Largest bead count tried when looking for the smallest one that works.
 MAX_BEADS_SEARCH = 4096
-
-
-@dataclass
-class Template:
-    """A checked starting shape.
-
-    Attributes
-    ----------
-    positions : ndarray, shape (n_beads, 3), float64, in d
-        Bead positions, centre of mass at the origin.
-    description : str
-        E.g. ``"T(2,3), +3_1"`` (the knot type signed with its handedness).
-    resolved : dict
-        Dotted run-file keys -> values the run should record (``{"knot.major_radius": 4.2}``).
-    writhe : float
-        Writhe of the closed chain (> 0: right-handed).
-    knot_type : str or None
-        Knot type found by topoly, signed with its handedness (``"+3_1"``,
-        :mod:`knotmm.knots.chirality`), ``None`` if not checked.
-    notes : list of str
-        Remarks for the user and the run's record.
-    check : TemplateCheck or None
-        The full check report.
-    """
-
-    positions: np.ndarray
-    description: str
-    resolved: dict[str, Any]
-    writhe: float
-    knot_type: str | None
-    notes: list[str] = field(default_factory=list)
-    check: TemplateCheck | None = None
-
-    @property
-    def n_beads(self) -> int:
-        return int(self.positions.shape[0])
-
-    @property
-    def facts(self) -> dict[str, Any]:
-        """What run.toml's ``[knotmm]`` table records about the start.
-
-        ``template`` (the description), ``template_writhe``, ``template_knot_type`` and
-        ``template_bond_range`` (``[shortest, longest]`` bond of the start, in d: off the
-        bond length for a file or an explicit ``knot.major_radius``; the bonds relax in the
-        run).
-        """
-        facts: dict[str, Any] = {
-            "template": self.description,
-            "template_writhe": float(self.writhe),
-            "template_knot_type": self.knot_type,
-        }
-        if self.check is not None:
-            facts["template_bond_range"] = [float(self.check.bond_min), float(self.check.bond_max)]
-        return facts
 
 
 def _signed_type(
@@ -343,7 +297,7 @@ def _ring_closure_notes(structure, cfg, allow_open_chain: bool) -> list[str]:
     return [f"{structure.path.name} is an open chain: closed here, bead {n - 1} bonded to bead 0"]
 
 
-def build_template(cfg, *, allow_open_chain: bool = False) -> Template:
+def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now") -> Template:
     """Build and check the starting shape a run file asks for.
 
     Parameters
@@ -357,6 +311,11 @@ def build_template(cfg, *, allow_open_chain: bool = False) -> Template:
         For ``knot.kind = "file"``: whether a file whose bonds leave the ring open (no bond
         from the last bead to the first) is accepted with a note, and closed. By default
         it is refused, since a run would simulate a ring the file does not describe.
+    identify : {"now", "later"}, optional
+        When the knot type is identified (topoly, in the knot worker): ``"now"`` waits for
+        it; ``"later"`` (a run, which must not wait for topoly's start-up) sends the
+        template to the worker and returns: :meth:`Template.settle_knot_type` judges the
+        answer once it is back, and a wrong knot type raises there.
 
     Returns
     -------
@@ -459,58 +418,74 @@ def build_template(cfg, *, allow_open_chain: bool = False) -> Template:
     # files and explicit radii start off the model's bond length: bonds and close pairs down
     # to sigma are allowed (they relax in the run), and noted
     relaxed = is_file or spec.explicit_radius
+    later = identify == "later" and topoly_available()
     check = check_template(
         x,
         bond,
         sigma,
         bond_tolerance=None if (relaxed or perturbation > 0.0) else BOND_TOLERANCE,
         expected_knot=expected,
+        identify=not later,
         min_distance=sigma if relaxed else None,
     )
-    notes.extend(check.notes)
     if relaxed:
         notes.extend(_relaxed_notes(check, cfg, is_file))
-    if check.problems:
-        problem = check.problems[0]
-        if perturbation > 0.0:
-            raise TemplateError(
-                f"knot.perturbation={perturbation:g} is too large: after it {problem}; use a "
-                "smaller perturbation or another knot.seed"
-            )
+
+    def conclude(check: TemplateCheck) -> tuple[str | None, str, list[str]]:
+        """Knot type, description and the check's notes; TemplateError on a problem."""
+        if check.problems:
+            problem = check.problems[0]
+            if perturbation > 0.0:
+                raise TemplateError(
+                    f"knot.perturbation={perturbation:g} is too large: after it {problem}; "
+                    "use a smaller perturbation or another knot.seed"
+                )
+            if is_file:
+                raise TemplateError(
+                    f"knot.path={cfg['knot.path']!r} frame {cfg['knot.frame']}: {problem}; "
+                    "pick another knot.frame"
+                )
+            raise TemplateError(f"knot.kind={kind!r} {label}: {problem}; use more knot.beads")
+        found = list(check.notes)
+        if check.knot_type == "0_1" and kind == "braid":
+            found.append("the braid closes to the unknot")
+        wr = check.writhe
         if is_file:
-            raise TemplateError(
-                f"knot.path={cfg['knot.path']!r} frame {cfg['knot.frame']}: {problem}; "
-                "pick another knot.frame"
-            )
-        raise TemplateError(f"knot.kind={kind!r} {label}: {problem}; use more knot.beads")
-    if check.knot_type == "0_1" and kind == "braid":
-        notes.append("the braid closes to the unknot")
-    wr = check.writhe
-    if kind == "file":
-        knot_type = check.knot_type
-        description = f"{label}, writhe {wr:+.2f}"
-        if check.knot_type not in (None, UNKNOWN):
-            description = f"{check.knot_type} from {description}"
-    else:
-        if not symmetry and check.knot_type not in (None, UNKNOWN) and "|" not in check.knot_type:
-            symmetry = symmetry_type(unsigned_knot_type(check.knot_type))
-        knot_type = _signed_type(check.knot_type, wr, symmetry, check.amphichiral)
+            description = f"{label}, writhe {wr:+.2f}"
+            if check.knot_type not in (None, UNKNOWN):
+                description = f"{check.knot_type} from {description}"
+            return check.knot_type, description, found
+        sym = symmetry
+        if not sym and check.knot_type not in (None, UNKNOWN) and "|" not in check.knot_type:
+            sym = symmetry_type(unsigned_knot_type(check.knot_type))
+        knot_type = _signed_type(check.knot_type, wr, sym, check.amphichiral)
         shown = knot_type if knot_type not in (None, UNKNOWN) else None
-        shown = shown or _signed_type(expected, wr, symmetry) or f"writhe {wr:+.2f}"
+        shown = shown or _signed_type(expected, wr, sym) or f"writhe {wr:+.2f}"
         description = f"{label}, {shown}"
         if cfg["knot.mirror"]:
             description += " (mirror image)"
+        return knot_type, description, found
+
+    knot_type, description, found = conclude(check)
+    notes.extend(found)
     for note in notes:
         logger.info("template: %s", note)
     return Template(
         positions=np.ascontiguousarray(x, dtype=np.float64),
         description=description,
         resolved=resolved,
-        writhe=wr,
+        writhe=check.writhe,
         knot_type=knot_type,
         notes=notes,
         check=check,
+        pending=_deferred_check(x, expected, conclude) if later else None,
     )
+
+
+def _deferred_check(x, expected, conclude) -> PendingKnotCheck | None:
+    """The template's knot identification, sent to the worker (None if it cannot be)."""
+    handle = submit_knot_check(x)
+    return None if handle is None else PendingKnotCheck(handle, expected, conclude)
 
 
 def build_system(cfg) -> tuple[openmm.app.Topology, openmm.System, np.ndarray]:

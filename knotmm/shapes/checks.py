@@ -13,20 +13,39 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.spatial
 
 from knotmm.errors import TemplateError
 from knotmm.knots.chirality import is_signed, unsigned_knot_type
-from knotmm.knots.identify import UNKNOWN, identify_knot, topoly_available
+from knotmm.knots.identify import (
+    UNKNOWN,
+    identify_knot,
+    submit_identification,
+    topoly_available,
+)
 from knotmm.knots.writhe import writhe
 from knotmm.shapes.knotinfo import name_order, normalise_name
 from knotmm.shapes.validation import check_positive
 from knotmm.units import LJ_CUTOFF_FACTOR
 
-__all__ = ["BOND_TOLERANCE", "TemplateCheck", "check_template", "closest_nonbonded"]
+__all__ = [
+    "BOND_TOLERANCE",
+    "TemplateCheck",
+    "check_template",
+    "closest_nonbonded",
+    "judge_knot_type",
+    "submit_knot_check",
+]
 
 #: Largest relative deviation of a template bond from the model's bond length (0.5 %).
 BOND_TOLERANCE = 0.005
+
+#: How a template's knot type is identified: chiral, every knot sharing the polynomial named.
+_TEMPLATE_IDENTIFICATION = {"chiral": True, "minimal": False}
+
+#: Up to this many beads the closest pair is found from all pairs (numpy, in blocks), which
+#: is quicker than importing scipy.spatial (most of a second); above, with a k-d tree.
+_ALL_PAIRS_BEADS = 3000
+_BLOCK_PAIRS = 2_000_000  # distances held at once in that search (16 MB)
 
 
 @dataclass
@@ -103,6 +122,10 @@ def closest_nonbonded(x: np.ndarray) -> tuple[float, tuple[int, int]]:
         ``(i, j)`` with ``i < j``.
     """
     n = x.shape[0]
+    if n <= _ALL_PAIRS_BEADS:
+        return _closest_nonbonded_all_pairs(x)
+    import scipy.spatial
+
     tree = scipy.spatial.cKDTree(x)
     dist, idx = tree.query(x, k=min(4, n))
     i = np.repeat(np.arange(n), dist.shape[1])
@@ -120,6 +143,24 @@ def closest_nonbonded(x: np.ndarray) -> tuple[float, tuple[int, int]]:
     return float(d[k]), (int(pairs[k, 0]), int(pairs[k, 1]))
 
 
+def _closest_nonbonded_all_pairs(x: np.ndarray) -> tuple[float, tuple[int, int]]:
+    """:func:`closest_nonbonded` from every pair ``i < j``, a block of rows at a time."""
+    n = x.shape[0]
+    best, pair = np.inf, (0, 0)
+    rows = max(1, _BLOCK_PAIRS // n)
+    for start in range(0, n - 1, rows):
+        i = np.arange(start, min(start + rows, n - 1))
+        diff = x[i, None, :] - x[None, :, :]
+        d = np.sqrt(diff[..., 0] * diff[..., 0] + diff[..., 1] * diff[..., 1]
+                    + diff[..., 2] * diff[..., 2])
+        j = np.arange(n)
+        d[~(j[None, :] > i[:, None]) | _bonded(i[:, None], j[None, :], n)] = np.inf
+        k = int(np.argmin(d))  # row-major: the first pair in (i, j) order wins a tie
+        if d.flat[k] < best:
+            best, pair = float(d.flat[k]), (int(i[k // n]), int(k % n))
+    return best, pair
+
+
 def _bonded(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
     """Whether beads ``i < j`` of a ring of ``n`` are bonded."""
     return (j - i == 1) | ((i == 0) & (j == n - 1))
@@ -132,9 +173,28 @@ def _same_knot(found: str, expected: str) -> bool:
     return bool(norm(found) & norm(expected))
 
 
-def _identify(x: np.ndarray, expected: str | None, report: TemplateCheck) -> None:
-    """Fill in the knot type (and problems/notes) of a check report, with topoly."""
-    signed_all = identify_knot(x, chiral=True, minimal=False)
+def submit_knot_check(x: np.ndarray):
+    """Start the template's knot identification in the worker; return at once.
+
+    Returns the handle of :func:`knotmm.knots.identify.submit_identification` (``None``
+    without topoly); its ``result()`` goes to :func:`judge_knot_type`.
+    """
+    return submit_identification(x, **_TEMPLATE_IDENTIFICATION)
+
+
+def judge_knot_type(signed_all: str | None, expected: str | None, report: TemplateCheck) -> None:
+    """Fill in the knot type (and problems/notes) of a check report from topoly's answer.
+
+    Parameters
+    ----------
+    signed_all : str or None
+        The identification's answer (chiral, every knot sharing the polynomial listed);
+        ``None``: not identified, the report is left as it is.
+    expected : str or None
+        The knot the template must be.
+    report : TemplateCheck
+        Updated in place: ``knot_type``, ``amphichiral``, ``problems``, ``notes``.
+    """
     if signed_all is None:
         return
     if signed_all == UNKNOWN:
@@ -257,7 +317,7 @@ def check_template(
         )
         report.problems.append(f"beads {pair[0]} and {pair[1]} are {dmin:.3f} d apart, {where}")
     if identify and topoly_available():
-        _identify(x, expected_knot, report)
+        judge_knot_type(identify_knot(x, **_TEMPLATE_IDENTIFICATION), expected_knot, report)
     elif identify:
         report.notes.append("knot type not checked: topoly not installed (pip install topoly)")
     if raise_errors and report.problems:

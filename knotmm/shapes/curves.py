@@ -22,9 +22,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.optimize
-import scipy.sparse
-import scipy.sparse.linalg
 
 __all__ = [
     "TooFewBeads",
@@ -80,6 +77,27 @@ class TubeCurve:
     def length(self, r0: float) -> float:
         """Length of the curve at major radius ``r0``, in d (mean speed x period)."""
         return float(self.speed(r0).mean() * self.period)
+
+    def length_slope(self, r0: float) -> float:
+        """``d length / d r0`` (dimensionless), in (0, period]: the length is increasing
+        and convex in ``r0``, each speed being ``sqrt(rest + (r0 + rho)^2)``."""
+        _, rho, _ = self._grid
+        return float(((r0 + rho) / self.speed(r0)).mean() * self.period)
+
+    def radius_for_length(self, target: float, start: float) -> float:
+        """The major radius at which the curve is ``target`` long, in d.
+
+        Newton's method from ``start``, a radius at which the curve is at least ``target``
+        long: on an increasing convex function the iterates then fall monotonically onto
+        the root, with no overshoot, so no bracketing is needed.
+        """
+        r = float(start)
+        for _ in range(100):
+            step = (self.length(r) - target) / self.length_slope(r)
+            r -= step
+            if abs(step) <= 1e-13 * max(1.0, abs(r)):
+                break
+        return r
 
 
 def torus_curve(p: int, q: int, a: float) -> TubeCurve:
@@ -194,6 +212,33 @@ def _equal_arc_parameters(curve: TubeCurve, r0: float, beads: int) -> np.ndarray
     return np.interp(targets, arc, t)
 
 
+#: Up to this many beads the placement's Newton systems are solved dense (numpy): quicker
+#: than importing scipy.sparse; above, sparse (scipy.sparse.linalg.spsolve).
+_DENSE_BEADS = 500
+
+
+def _solve_newton_system(values, rows, cols, rhs) -> np.ndarray:
+    """Solve ``A x = rhs`` for the n x n matrix with ``A[rows, cols] = values``.
+
+    A singular matrix gives non-finite entries (the caller stops), as spsolve does.
+    """
+    n = rhs.shape[0]
+    if n <= _DENSE_BEADS:
+        a = np.zeros((n, n))
+        np.add.at(a, (rows, cols), values)
+        try:
+            return np.linalg.solve(a, rhs)
+        except np.linalg.LinAlgError:
+            return np.full(n, np.nan)
+    import scipy.sparse
+    import scipy.sparse.linalg
+
+    a = scipy.sparse.csc_matrix((values, (rows, cols)), shape=(n, n))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", scipy.sparse.linalg.MatrixRankWarning)
+        return scipy.sparse.linalg.spsolve(a, rhs)
+
+
 def equal_chord(
     curve: TubeCurve, beads: int, r0: float | None, bond_length: float
 ) -> tuple[np.ndarray, float, float]:
@@ -231,7 +276,7 @@ def equal_chord(
         hi = max(2.0 * lowest, target / (2.0 * np.pi * curve.laps) + 1.0)
         while curve.length(hi) < target:
             hi *= 2.0
-        r0 = scipy.optimize.brentq(lambda r: curve.length(r) - target, lowest, hi, xtol=1e-12)
+        r0 = curve.radius_for_length(target, hi)
         chord = bond_length
     else:
         chord = curve.length(r0) / n
@@ -258,10 +303,7 @@ def equal_chord(
             d_extra = 2.0 * np.einsum("ij,ij->i", diff, radial[1:] - radial[:-1])
         else:
             d_extra = np.full(n, -2.0 * c)
-        jac = scipy.sparse.csc_matrix(
-            (np.concatenate([d_lo, d_hi, d_extra]), (rows, cols)), shape=(n, n)
-        )
-        return g, jac
+        return g, np.concatenate([d_lo, d_hi, d_extra])
 
     def admissible(s, extra):
         if not (np.all(np.isfinite(s)) and np.isfinite(extra)):
@@ -280,9 +322,7 @@ def equal_chord(
         if np.max(np.abs(g)) < tol:
             converged = True
             break
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", scipy.sparse.linalg.MatrixRankWarning)
-            step = scipy.sparse.linalg.spsolve(jac, -g)
+        step = _solve_newton_system(jac, rows, cols, -g)
         if not np.all(np.isfinite(step)):
             break
         # damped Newton: halve the step until the residual drops and beads stay in order

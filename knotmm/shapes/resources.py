@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 
-from knotmm.dynamics.noise import NoiseGenerator
 from knotmm.dynamics.registry import REGISTRY, resolve
 from knotmm.errors import ConfigError
 
@@ -39,7 +38,11 @@ def run_memory(cfg, n_beads: int) -> tuple[int, str]:
     """
     name, _ = resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
     brownian = REGISTRY[name].brownian and math.isfinite(float(cfg["run.peclet"]))
-    if brownian and NoiseGenerator(cfg["run.noise"]).method_for(n_beads) == "cholesky":
+    if not brownian:
+        return 0, ""
+    from knotmm.dynamics.noise import NoiseGenerator  # numba and scipy: Brownian runs only
+
+    if NoiseGenerator(cfg["run.noise"]).method_for(n_beads) == "cholesky":
         size = 3 * n_beads
         what = f"the dense {size} x {size} RPY mobility and its Cholesky factor"
         return 2 * size * size * 8, what

@@ -115,7 +115,7 @@ def _run_point(task: Mapping[str, Any]) -> dict[str, Any]:
             from knotmm.workflow import resume
 
             try:
-                resume(directory, progress=False)
+                resume(directory, progress=False, wait_for_checks=True)
             except (ConfigError, TrajectoryFileError, RunDirectoryError) as exc:
                 log.info("point %s cannot be resumed (%s): running it again", name, exc)
                 action = "run"
@@ -123,7 +123,8 @@ def _run_point(task: Mapping[str, Any]) -> dict[str, Any]:
             from knotmm.workflow import run
 
             cfg = RunConfig.from_dict(task["config"])
-            run(cfg, directory=directory, overwrite=True, progress=False)
+            # a sweep's analysis waits for topoly next anyway: the run's checks are kept
+            run(cfg, directory=directory, overwrite=True, progress=False, wait_for_checks=True)
     except SimulationFault as exc:
         status, error = "fault", error_text(exc)
     except KeyboardInterrupt:

@@ -79,6 +79,31 @@ public:
     virtual void step(int steps);
     void stepTo(double time);
     long long getNumForceEvaluations() const;
+%extend {
+    // groups: a sequence of ints (0..31); returns a tuple of floats, kJ/mol, one per group.
+    PyObject* getGroupEnergies(PyObject* groups) {
+        PyObject* seq = PySequence_Fast(groups, "groups: expected a sequence of force groups (ints 0..31)");
+        if (seq == NULL)
+            return NULL;
+        std::vector<int> wanted;
+        const Py_ssize_t count = PySequence_Fast_GET_SIZE(seq);
+        for (Py_ssize_t i = 0; i < count; i++) {
+            long g = PyLong_AsLong(PySequence_Fast_GET_ITEM(seq, i));
+            if (g == -1 && PyErr_Occurred()) {
+                Py_DECREF(seq);
+                PyErr_SetString(PyExc_TypeError, "groups: expected a sequence of force groups (ints 0..31)");
+                return NULL;
+            }
+            wanted.push_back((int) g);
+        }
+        Py_DECREF(seq);
+        const std::vector<double> energies = $self->getGroupEnergies(wanted);
+        PyObject* out = PyTuple_New((Py_ssize_t) energies.size());
+        for (size_t i = 0; i < energies.size(); i++)
+            PyTuple_SET_ITEM(out, (Py_ssize_t) i, PyFloat_FromDouble(energies[i]));
+        return out;
+    }
+}
     long long getNumAcceptedSteps() const;
     long long getNumRejectedSteps() const;
     int getLastStages() const;

@@ -43,9 +43,14 @@ def test_an_unguarded_script_with_knot_checks_leaves_a_consistent_run(tmp_path):
         textwrap.dedent(
             f"""
             import sys
+            import time
             import knotmm
+            from knotmm.knots.identify import start_worker, worker_ready
 
             print("body", flush=True)
+            start_worker()
+            while not worker_ready():  # a run's end does not wait for topoly's import
+                time.sleep(0.05)
             cfg = knotmm.RunConfig.from_dict({SHORT_RUN!r})
             knotmm.run(cfg, "out", overwrite=True, progress=False)
             print("topoly" in sys.modules, flush=True)

@@ -75,12 +75,26 @@ def test_numba_kernel_matches_numpy_reference_and_leaves_input_alone():
     frames = np.stack([random_ring(rng, 25) + 0.1 * rng.normal(size=(25, 3)) for _ in range(6)])
     frames.setflags(write=False)
     before = frames.copy()
-    fast = writhe(frames)
+    fast = np.zeros(6)
+    writhe_module._numba_kernel()(np.ascontiguousarray(frames), fast)
     ref = writhe_module._writhe_numpy(frames)
     np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-8)
     np.testing.assert_array_equal(frames, before)
-    assert fast.shape == (6,)
-    np.testing.assert_allclose([writhe(f) for f in frames], fast, rtol=0, atol=1e-12)
+    np.testing.assert_allclose([writhe(f) for f in frames], fast, rtol=0, atol=1e-8)
+
+
+def test_writhe_takes_the_compiled_kernel_for_large_problems(monkeypatch):
+    rng = np.random.default_rng(4)
+    frames = np.stack([random_ring(rng, 30) for _ in range(4)])
+    small = writhe(frames)  # numpy
+    monkeypatch.setattr(writhe_module, "_PAIR_CHUNK", 10)  # now "large": numba
+    calls = []
+    kernel = writhe_module._numba_kernel()
+    monkeypatch.setattr(writhe_module, "_numba_kernel",
+                        lambda: lambda f, o: calls.append(1) or kernel(f, o))
+    large = writhe(frames)
+    assert calls == [1] and large.shape == (4,)
+    np.testing.assert_allclose(large, small, rtol=0, atol=1e-8)
 
 
 def test_writhe_invariances():

@@ -9,7 +9,7 @@ import pytest
 
 from knotmm.config import RunConfig
 from knotmm.errors import ConfigError
-from knotmm.shapes import build_template, resources, torus_knot
+from knotmm.shapes import build_template, checks, resources, torus_knot
 from knotmm.shapes.checks import closest_nonbonded
 
 
@@ -27,8 +27,13 @@ def _naive_closest(x):
     return float(best), pair
 
 
+@pytest.mark.parametrize("way", ["blocks", "row-by-row", "kd-tree"])
 @pytest.mark.parametrize("n", [4, 5, 7, 30, 120])
-def test_closest_pair_matches_all_pairs(n, rng):
+def test_closest_pair_matches_all_pairs(n, way, rng, monkeypatch):
+    if way == "kd-tree":  # the k-d tree that large chains use, on small ones
+        monkeypatch.setattr(checks, "_ALL_PAIRS_BEADS", 0)
+    elif way == "row-by-row":  # one row per block: ties across blocks
+        monkeypatch.setattr(checks, "_BLOCK_PAIRS", 1)
     for trial in range(5):
         x = rng.normal(size=(n, 3))
         if trial % 2:

@@ -165,12 +165,12 @@ def _fail_at_frame(monkeypatch, frame: int, error: int):
 
     def failing(self, simulation, state):
         if self.index == frame:
-            def write_model(positions):
+            def write_frame(positions):
                 self._file.write(b"\0" * 100)  # part of a frame got out before the disk filled
                 self._file.flush()
                 raise OSError(error, os.strerror(error))
 
-            self._dcd.writeModel = write_model
+            self._write_frame = write_frame
         report(self, simulation, state)
 
     monkeypatch.setattr(DCDReporter, "report", failing)

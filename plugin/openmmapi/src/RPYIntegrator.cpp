@@ -174,6 +174,17 @@ void RPYIntegrator::stepTo(double time) {
         takeStep(time);
 }
 
+std::vector<double> RPYIntegrator::getGroupEnergies(const std::vector<int>& groups) {
+    checkInitialized();
+    for (int g : groups)
+        if (g < 0 || g > 31)
+            throw OpenMMException("groups: force group " + std::to_string(g) +
+                                  " is out of range; force groups are 0 to 31");
+    std::vector<double> energies;
+    kernel.getAs<IntegrateRPYStepKernel>().computeGroupEnergies(*context, groups, energies);
+    return energies;
+}
+
 long long RPYIntegrator::getNumForceEvaluations() const {
     checkInitialized();
     return kernel.getAs<IntegrateRPYStepKernel>().getNumForceEvaluations();

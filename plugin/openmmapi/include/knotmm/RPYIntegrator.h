@@ -64,6 +64,16 @@ public:
     /** Advance to `time` (ps) exactly: steps are never longer than what is left. */
     void stepTo(double time);
 
+    /**
+     * Potential energy of each force group in `groups` (each 0..31), in kJ/mol (= F0 d), at the
+     * Context's current positions as the steps see them: beads shifted to their centre of
+     * mass (translation changes only an external field's energy; for gravity add
+     * g * n * z_com). One C++ call instead of one Context.getState per group. Nothing else
+     * changes: the Context keeps its positions and forces, the integrator its cached velocity,
+     * step size and noise stream, so the next step is the same with or without this call.
+     */
+    std::vector<double> getGroupEnergies(const std::vector<int>& groups);
+
     long long getNumForceEvaluations() const;
     long long getNumAcceptedSteps() const;
     long long getNumRejectedSteps() const;

@@ -12,6 +12,7 @@
 
 #include <iosfwd>
 #include <string>
+#include <vector>
 
 namespace OpenMM {
 class ContextImpl;
@@ -32,6 +33,13 @@ public:
      */
     virtual double execute(OpenMM::ContextImpl& context, RPYIntegrator& integrator,
                            double targetTime) = 0;
+    /**
+     * Energy of each force group in `groups` at the context's positions shifted to the beads'
+     * centre of mass (kJ/mol), into `energies`. Leaves the context's positions and forces and
+     * every part of the kernel's state as they were.
+     */
+    virtual void computeGroupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
+                                      std::vector<double>& energies) = 0;
     /** Drop cached velocities (the state was changed by something other than the kernel). */
     virtual void invalidateCache() = 0;
     virtual void createCheckpoint(std::ostream& stream) const = 0;

@@ -36,6 +36,8 @@ public:
         : IntegrateRPYStepKernel(name, platform), mobility(1.0, 1.0, 1) {}
     void initialize(const OpenMM::System& system, const RPYIntegrator& integrator) override;
     double execute(OpenMM::ContextImpl& context, RPYIntegrator& integrator, double targetTime) override;
+    void computeGroupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
+                              std::vector<double>& energies) override;
     void invalidateCache() override;
     void createCheckpoint(std::ostream& stream) const override;
     void loadCheckpoint(std::istream& stream) override;

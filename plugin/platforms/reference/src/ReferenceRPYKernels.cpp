@@ -210,6 +210,35 @@ void ReferenceIntegrateRPYStepKernel::velocity(ContextImpl& context, const Vec& 
     nEvaluations++;
 }
 
+void ReferenceIntegrateRPYStepKernel::computeGroupEnergies(ContextImpl& context, const vector<int>& groups,
+                                                           vector<double>& energies) {
+    // The positions the steps evaluate forces at (writePositions with the shift, bit for bit),
+    // one energy-only evaluation per group, then the Context exactly as it was: positions,
+    // virtual sites, force buffer and last force groups. The kernel's own state (cached
+    // velocity, step size, noise stream, counters) is not touched.
+    ReferencePlatform::PlatformData& data = platformData(context);
+    const vector<Vec3> savedPositions = *data.positions;
+    const vector<Vec3> savedForces = *data.forces;
+    const int savedGroups = context.getLastForceGroups();
+    Vec at(3 * n);
+    readPositions(context, at);
+    energies.assign(groups.size(), 0.0);
+    try {
+        writePositions(context, at, true);
+        for (size_t i = 0; i < groups.size(); i++)
+            energies[i] = context.calcForcesAndEnergy(false, true, 1 << groups[i]);
+    }
+    catch (...) {
+        *data.positions = savedPositions;
+        *data.forces = savedForces;
+        context.getLastForceGroups() = savedGroups;
+        throw;
+    }
+    *data.positions = savedPositions;
+    *data.forces = savedForces;
+    context.getLastForceGroups() = savedGroups;
+}
+
 double ReferenceIntegrateRPYStepKernel::errorNorm(const Vec& e, double tolerance) const {
     // largest per-bead displacement error over the tolerance; inf if anything is not finite
     double worst = 0.0;

@@ -1,0 +1,125 @@
+"""A checked starting shape (:class:`Template`) and its knot check still under way.
+
+:func:`knotmm.shapes.builder.build_template` makes a :class:`Template`; with
+``identify="later"`` its knot type is judged by :meth:`Template.settle_knot_type` once the
+knot worker has answered. Units: d.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from knotmm.shapes.checks import TemplateCheck, judge_knot_type
+
+__all__ = ["PendingKnotCheck", "Template"]
+
+logger = logging.getLogger("knotmm.shapes.builder")
+
+
+@dataclass
+class Template:
+    """A checked starting shape.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (n_beads, 3), float64, in d
+        Bead positions, centre of mass at the origin.
+    description : str
+        E.g. ``"T(2,3), +3_1"`` (the knot type signed with its handedness).
+    resolved : dict
+        Dotted run-file keys -> values the run should record (``{"knot.major_radius": 4.2}``).
+    writhe : float
+        Writhe of the closed chain (> 0: right-handed).
+    knot_type : str or None
+        Knot type found by topoly, signed with its handedness (``"+3_1"``,
+        :mod:`knotmm.knots.chirality`), ``None`` if not checked.
+    notes : list of str
+        Remarks for the user and the run's record.
+    check : TemplateCheck or None
+        The full check report.
+    pending : PendingKnotCheck or None
+        The knot identification still under way (``build_template(identify="later")``).
+    """
+
+    positions: np.ndarray
+    description: str
+    resolved: dict[str, Any]
+    writhe: float
+    knot_type: str | None
+    notes: list[str] = field(default_factory=list)
+    check: TemplateCheck | None = None
+    pending: PendingKnotCheck | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def n_beads(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def knot_type_pending(self) -> bool:
+        """Whether the knot identification of ``build_template(identify="later")`` is out."""
+        return self.pending is not None
+
+    def settle_knot_type(self, wait: bool = False) -> list[str]:
+        """Judge a deferred knot identification once it is back.
+
+        Parameters
+        ----------
+        wait : bool
+            Wait for the answer (else return at once when it is not back yet).
+
+        Returns
+        -------
+        list of str
+            The notes it added (also appended to :attr:`notes`); empty when nothing was
+            judged. :attr:`knot_type`, :attr:`description` and :attr:`check` are updated.
+
+        Raises
+        ------
+        TemplateError
+            If the template is not the knot it should be (the message
+            :func:`build_template` gives with ``identify="now"``).
+        """
+        pending = self.pending
+        if pending is None or not (wait or pending.handle.done()):
+            return []
+        self.pending = None
+        before = len(self.check.notes)
+        judge_knot_type(pending.handle.result(), pending.expected, self.check)
+        self.knot_type, self.description, found = pending.conclude(self.check)
+        added = found[before:]
+        self.notes.extend(added)
+        for note in added:
+            logger.info("template: %s", note)
+        return added
+
+    @property
+    def facts(self) -> dict[str, Any]:
+        """What run.toml's ``[knotmm]`` table records about the start.
+
+        ``template`` (the description), ``template_writhe``, ``template_knot_type`` and
+        ``template_bond_range`` (``[shortest, longest]`` bond of the start, in d: off the
+        bond length for a file or an explicit ``knot.major_radius``; the bonds relax in the
+        run).
+        """
+        facts: dict[str, Any] = {
+            "template": self.description,
+            "template_writhe": float(self.writhe),
+            "template_knot_type": self.knot_type,
+        }
+        if self.check is not None:
+            facts["template_bond_range"] = [float(self.check.bond_min), float(self.check.bond_max)]
+        return facts
+
+
+@dataclass
+class PendingKnotCheck:
+    """A template's knot identification under way in the worker."""
+
+    handle: Any
+    expected: str | None
+    conclude: Callable[[TemplateCheck], tuple[str | None, str, list[str]]]
