@@ -26,12 +26,14 @@ The worker starts in the background (:meth:`WorkerProcess.start`: a fork and exe
 under a millisecond here) and imports topoly at once, off the caller's path; requests queue
 in the pipe meanwhile and are answered in order. If it dies, the identifications under way
 report ``None`` (not checked), a warning is logged, and the next request starts a new
-worker. The worker runs in a session of its own and ignores SIGINT: Ctrl-C on a terminal
-goes to the calling process, which decides how a run stops.
+worker. The worker runs in a session of its own, at a lower priority (nice 10: the
+simulation beside it comes first), and ignores SIGINT: Ctrl-C on a terminal goes to the
+calling process, which decides how a run stops.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import subprocess
@@ -385,6 +387,9 @@ def main() -> int:
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # a background helper: the simulation it checks comes first for the CPU
+    with contextlib.suppress(OSError, AttributeError):
+        os.nice(10)
     # the protocol moves off descriptors 0 and 1, which topoly closes and prints to
     requests = Connection(os.dup(0), writable=False)
     replies = Connection(os.dup(1), readable=False)
