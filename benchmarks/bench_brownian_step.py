@@ -8,8 +8,11 @@ start, interleaved, ``--repeats`` times (medians):
 
 * ``numba``: ``benchmarks/numba_brownian.py`` (compiled before timing);
 * ``python``: ``Simulation(engine="python")``, CPU platform, one thread;
-* ``plugin``: ``Simulation(engine="plugin")`` (``ito_heun`` only: the plugin has no
-  ``leimkuhler_matthews``).
+* ``plugin``: ``Simulation(engine="plugin")``, CPU platform, one thread, LAPACK's Cholesky
+  (:func:`knotmm.plugin.use_lapack_cholesky`).
+
+Each line also gives simulated tau_d per wall second and its ratio to the Python engine's
+``ito_heun`` at 0.002 tau_d (the default before the plugin had ``leimkuhler_matthews``).
 
 Then where a step's time goes, from each piece timed alone (microseconds per call, medians
 of 5 batches): numba and Python engine: ``forces``, ``mobility``, ``matrix`` (dense RPY),
@@ -17,20 +20,20 @@ of 5 batches): numba and Python engine: ``forces``, ``mobility``, ``matrix`` (de
 ``rest`` = step - the pieces times their count per step. The Python engine's ``forces`` cycles
 through 64 consecutive positions of a Brownian run, as in a run: the CPU platform then
 rebuilds its neighbour list on most calls; ``forces fixed`` repeats one position (no
-rebuild). Plugin: ``step`` (the scheme's step, per call), ``heun`` (the same step at kT = 0:
-two evaluations, no noise, beads nearly still), ``heun fixed`` / ``heun moving`` (the same
-with ``setPositions`` before each step: to one position again / to 64 consecutive positions
-of a Brownian run in turn; the difference is the neighbour-list rebuilds), ``no-force`` (an
-Euler step on a System without forces: mobility and the CPU platform's fixed cost per force
-call), so ``noise`` = step - heun (noise and the neighbour-list rebuilds the noise causes)
-and ``forces`` = (heun - 2 no-force) / 2. ``crout*`` is a numba port (fastmath, as the C++
-``omp simd`` reduction) of the plugin's unblocked Cholesky loop
-(``plugin/platforms/reference/src/RPYMobility.cpp``), an estimate of the plugin's
-factorisation.
+rebuild). Plugin (each a step of a fresh Context from the run's positions, per call):
+``step`` (the scheme at the run's Pe), ``still`` (the same at kT = 1e-12 F0 d: every noise
+sample is drawn, the beads move only by the drift), ``det`` (the same at kT = 0: no noise;
+``heun`` for ``ito_heun``, ``euler`` for ``leimkuhler_matthews``), ``no-force`` (an Euler step
+on a System without forces: mobility and the CPU platform's fixed cost per force call);
+``noise`` = still - det (matrix, Cholesky, normals, ``L xi``, and what they do to the force
+calls after them), ``motion`` = step - still (neighbour-list rebuilds as the noise moves the
+beads), ``forces`` = (det / evaluations - no-force). ``cholesky`` / ``cholesky builtin``:
+the plugin's factorisation alone (``rpyplugin.choleskyFactor``, LAPACK / the built-in loop,
+with a copy of the matrix in and out).
 
 BLAS/LAPACK run on one thread (``threadpoolctl``) unless ``--blas-threads`` says otherwise::
 
-    python benchmarks/bench_brownian_step.py                     # about 2 min
+    python benchmarks/bench_brownian_step.py                     # about 1 min
     python benchmarks/bench_brownian_step.py --schemes ito_heun --steps 300
 """
 
@@ -38,7 +41,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import math
 import os
 import statistics
 import sys
@@ -46,7 +48,6 @@ import time
 from functools import partial
 from pathlib import Path
 
-import numba
 import numpy as np
 import scipy.linalg
 from threadpoolctl import threadpool_limits
@@ -56,6 +57,8 @@ from knotmm.dynamics.mobility import rpy_matrix, rpy_velocities
 from knotmm.engine.simulation import Simulation
 
 STEPS = {"ito_heun": 0.002, "leimkuhler_matthews": 0.01}
+#: (scheme, program) -> simulated tau_d per wall second, filled as the schemes run.
+RATES: dict = {}
 #: Force + mobility evaluations per step, and noise samples per step.
 COUNTS = {"ito_heun": (2, 1), "leimkuhler_matthews": (1, 1)}
 #: The pieces are timed in CPU time (less disturbed by other jobs on a shared machine).
@@ -70,23 +73,6 @@ def _load(name):
         sys.modules[name] = module  # numba's cache looks the module up by name
         spec.loader.exec_module(module)
     return sys.modules[name]
-
-
-@numba.njit(cache=True, fastmath=True)
-def crout(a):
-    """The plugin's row-oriented Cholesky-Crout, in place on ``a`` (n, n); lower factor."""
-    n = a.shape[0]
-    for i in range(n):
-        for j in range(i + 1):
-            s = a[i, j]
-            for k in range(j):
-                s -= a[i, k] * a[j, k]
-            if j < i:
-                a[i, j] = s / a[j, j]
-            else:
-                a[i, i] = math.sqrt(s)
-        for j in range(i + 1, n):
-            a[i, j] = 0.0
 
 
 def config(scheme, args, engine):
@@ -123,32 +109,24 @@ def python_pieces(sim, budget, trajectory) -> dict:
     }
 
 
-def plugin_pieces(sim, scheme, args, budget, trajectory) -> dict:
+def plugin_pieces(sim, scheme, args, budget) -> dict:
     import openmm
 
     from knotmm.model.system import chain_system
-    from knotmm.plugin import RPYIntegrator
+    from knotmm.plugin import RPYIntegrator, rpyplugin
 
     per_call = partial(_load("numba_brownian").per_call, clock=CLOCK)
     x = sim.positions.copy()
     cpu = openmm.Platform.getPlatformByName("CPU")
     keep = []
 
-    def stepper(system, method, kt, positions=None):
-        """One step per call; from each of ``positions`` in turn (setPositions) if given."""
+    def stepper(system, method, kt):
+        """One step of a fresh Context (from the run's positions) per call."""
         integ = RPYIntegrator(STEPS[scheme], method, kT=kt, seed=1, threads=1)
         ctx = openmm.Context(system, integ, cpu, {"Threads": "1"})
         ctx.setPositions(x)
         keep.append(ctx)
-        if positions is None:
-            return lambda: integ.step(1)
-        k = [0]
-
-        def step():
-            k[0] = (k[0] + 1) % len(positions)
-            ctx.setPositions(positions[k[0]])
-            integ.step(1)
-        return step
+        return lambda: integ.step(1)
 
     empty = openmm.System()
     for _ in range(len(x)):
@@ -157,11 +135,11 @@ def plugin_pieces(sim, scheme, args, budget, trajectory) -> dict:
     a = rpy_matrix(x)
     return {
         "step": per_call(stepper(system, scheme, 1.0 / args.peclet), budget),
-        "heun": per_call(stepper(system, "heun", 0.0), budget),
-        "heun fixed": per_call(stepper(system, "heun", 0.0, [x]), budget),
-        "heun moving": per_call(stepper(system, "heun", 0.0, trajectory), budget),
+        "still": per_call(stepper(system, scheme, 1e-12), budget),
+        "det": per_call(stepper(system, scheme, 0.0), budget),
         "no-force": per_call(stepper(empty, "euler", 0.0), budget),
-        "crout*": per_call(lambda: crout(a.copy()), budget),
+        "cholesky": per_call(lambda: rpyplugin.choleskyFactor(a, False), budget),
+        "cholesky builtin": per_call(lambda: rpyplugin.choleskyFactor(a, True), budget),
     }
 
 def main(argv=None):
@@ -185,7 +163,7 @@ def run_scheme(scheme, args):
     nb = _load("numba_brownian")
     dt = STEPS[scheme]
     kt = 1.0 / args.peclet
-    engines = ["python", "plugin"] if scheme == "ito_heun" else ["python"]
+    engines = ["python", "plugin"]
     sims = {e: Simulation.from_config(config(scheme, args, e), engine=e) for e in engines}
     x0 = sims["python"].positions.copy()
     params = nb.parameters(gravity=0.0)
@@ -219,11 +197,16 @@ def run_scheme(scheme, args):
     print(f"\n{scheme}, dt = {dt:g} tau_d, T(2,3) N = {args.beads}, Pe = {args.peclet:g}, "
           f"gravity 0, {steps} steps per run, medians of {args.repeats} interleaved; load "
           f"{min(loads):.2f}-{max(loads):.2f}")
-    print(f"  {'':<7} {'wall':>8} {'cpu':>8} us/step  {'wall/numba':>10} {'cpu/numba':>10}  runs")
+    print(f"  {'':<7} {'wall':>8} {'cpu':>8} us/step  {'wall/numba':>10} {'cpu/numba':>10} "
+          f"{'tau_d/s':>8} {'x today':>7}  runs (wall/cpu)")
     for k in med:
         spread = ", ".join(f"{w:.0f}/{c:.0f}" for w, c in zip(*times[k], strict=True))
+        rate = dt / (1e-6 * med[k])  # simulated tau_d per wall second
+        RATES[(scheme, k)] = rate
+        today = RATES.get(("ito_heun", "python"))
         print(f"  {k:<7} {med[k]:8.0f} {cpu[k]:8.0f}          {med[k] / med['numba']:10.2f} "
-              f"{cpu[k] / cpu['numba']:10.2f}  ({spread})")
+              f"{cpu[k] / cpu['numba']:10.2f} {rate:8.2f} "
+              f"{'' if today is None else f'{rate / today:7.2f}'}  ({spread})")
     n_eval, n_noise = COUNTS[scheme]
     budget = args.budget
     trajectory = [state["numba"]]
@@ -238,11 +221,11 @@ def run_scheme(scheme, args):
         pc["rest"] = cpu[k] - used
         print(f"  {k:<7} cpu us/call: " + ", ".join(f"{n} {t:.0f}" for n, t in pc.items())
               + f"  (x{n_eval} forces, mobility; x{n_noise} matrix, cholesky, L xi)")
-    if "plugin" in sims:
-        pc = plugin_pieces(sims["plugin"], scheme, args, budget, trajectory)
-        pc["noise"] = pc["step"] - pc["heun"]
-        pc["forces"] = (pc["heun"] - 2 * pc["no-force"]) / 2
-        print("  plugin  cpu us/call: " + ", ".join(f"{n} {t:.0f}" for n, t in pc.items()))
+    pc = plugin_pieces(sims["plugin"], scheme, args, budget)
+    pc["noise"] = pc["still"] - pc["det"]
+    pc["motion"] = pc["step"] - pc["still"]
+    pc["forces"] = pc["det"] / n_eval - pc["no-force"]
+    print("  plugin  cpu us/call: " + ", ".join(f"{n} {t:.0f}" for n, t in pc.items()))
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ Examples
 >>> resolve("auto", float("inf"), None)
 ('rk23', 0.01)
 >>> resolve("auto", 2.0, None)
-('ito_heun', 0.002)
+('leimkuhler_matthews', 0.01)
 >>> REGISTRY["rkc2"].adaptive
 True
 """
@@ -37,6 +37,7 @@ from knotmm.units import thermal_energy
 
 __all__ = [
     "AUTO",
+    "AUTO_BROWNIAN",
     "BROWNIAN_NAMES",
     "DEFAULT_BROWNIAN_TIMESTEP",
     "DEFAULT_TIMESTEP",
@@ -57,6 +58,8 @@ DEFAULT_TIMESTEP = 0.01
 #: Step of Brownian integrators at finite Pe when none is given (see
 #: :mod:`knotmm.dynamics.brownian`, "Step size").
 DEFAULT_BROWNIAN_TIMESTEP = 0.002
+#: What ``"auto"`` is at a finite Peclet number.
+AUTO_BROWNIAN = "leimkuhler_matthews"
 #: Above this fixed step (tau_d) a Brownian run warns: stiff bond modes go unstable.
 _BROWNIAN_STEP_WARNING = 0.01
 
@@ -129,13 +132,13 @@ REGISTRY: dict[str, IntegratorInfo] = {
         ),
         IntegratorInfo(
             "ito_heun", _BROWN, "ItoHeun", 1, False, True,
-            "Heun drift with Ito noise, fixed step; the default at finite Pe",
+            "Heun drift with Ito noise, fixed step",
             DEFAULT_BROWNIAN_TIMESTEP,
         ),
         IntegratorInfo(
             "leimkuhler_matthews", _BROWN, "LeimkuhlerMatthews", 1, False, True,
             "Leimkuhler-Matthews, fixed step, one velocity a step; Boltzmann bond "
-            "fluctuations at 0.01 tau_d",
+            "fluctuations at 0.01 tau_d; the default at finite Pe",
             0.01,
         ),
         IntegratorInfo(
@@ -179,8 +182,10 @@ def resolve(integrator: str, peclet: float, timestep: float | None) -> tuple[str
     """The integrator and step a run uses: ``"auto"`` and an unset step resolved.
 
     ``"auto"`` is ``rk23`` at ``Pe = inf`` (the run then measures the chain's stiffness and
-    may take ``rkc2`` instead: :func:`auto_deterministic`) and ``ito_heun`` at a finite
-    Peclet number. An
+    may take ``rkc2`` instead: :func:`auto_deterministic`) and ``leimkuhler_matthews`` at a
+    finite Peclet number: at its 0.01 tau_d it keeps the bond-length fluctuations within
+    0.4 % of Boltzmann's for 6-12x the simulated time per wall second of ``ito_heun`` at
+    0.002 (``benchmarks/README.md``). An
     unset step is the integrator's ``default_timestep`` at finite Pe
     (:data:`DEFAULT_BROWNIAN_TIMESTEP` for the Brownian ones) and :data:`DEFAULT_TIMESTEP`
     at ``Pe = inf`` (where a Brownian integrator has no noise and is its deterministic
@@ -206,7 +211,7 @@ def resolve(integrator: str, peclet: float, timestep: float | None) -> tuple[str
         For a name that is not registered.
     """
     finite = math.isfinite(float(peclet))
-    name = ("ito_heun" if finite else "rk23") if integrator == AUTO else integrator
+    name = (AUTO_BROWNIAN if finite else "rk23") if integrator == AUTO else integrator
     info = _info(name)
     if timestep is None:
         timestep = info.default_timestep if finite else DEFAULT_TIMESTEP
@@ -267,9 +272,9 @@ def make(
     if math.isfinite(float(peclet)):
         raise ConfigError(
             f"run.integrator = {name!r} cannot integrate Brownian dynamics (run.peclet = "
-            f'{peclet:g}): leave run.integrator unset ("auto" picks ito_heun, step '
-            f'{DEFAULT_BROWNIAN_TIMESTEP:g}) or use "ito_heun" / "euler_maruyama" with a fixed '
-            f"run.timestep such as {DEFAULT_BROWNIAN_TIMESTEP:g}"
+            f'{peclet:g}): leave run.integrator unset ("auto" picks {AUTO_BROWNIAN}, step '
+            f'{REGISTRY[AUTO_BROWNIAN].default_timestep:g}) or use a Brownian one: '
+            f'{", ".join(BROWNIAN_NAMES)}'
         )
     try:
         if info.adaptive:

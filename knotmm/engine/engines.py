@@ -8,11 +8,13 @@
   next report time; if the plugin is not built (or cannot load), one warning names
   :func:`knotmm.plugin.load_error` and the run uses the Python engine;
 * ``"auto"`` (the default): the plugin when it is available, silently the Python engine
-  otherwise, and the Python engine for Brownian runs (a Brownian integrator at finite
-  ``run.peclet``): there a plugin step costs more than a Python one (dense Cholesky noise in
-  both; ito_heun at N = 90, dt = 0.002, medians of 5 x 400 steps: 1.94 against 1.21, 2.12
-  against 1.64 and 2.17 against 1.62 ms a step on the shared 2-core development machine),
-  and for GPU platforms, where the plugin has no kernel.
+  otherwise, and for GPU platforms, where the plugin has no kernel. Brownian runs take the
+  plugin too (its Cholesky is LAPACK's, as the Python engine's, and its step has no Python
+  round trips: T(2,3), N = 90, Pe = 2, CPU time per step 1.12 against 1.68 ms with ito_heun
+  at dt = 0.002 and 0.96 against 1.69 ms with leimkuhler_matthews at 0.01,
+  ``benchmarks/bench_brownian_step.py``), except where the noise is Lanczos's
+  (``noise_method``; ``run.noise = "auto"`` above 300 beads): the plugin only has the dense
+  Cholesky factor.
 
 Both engines take the same steps for deterministic methods (positions equal to 1e-10 d over
 1 tau_d on the Reference platform); the Brownian methods use different noise streams with
@@ -39,7 +41,7 @@ PLUGIN_PLATFORMS = ("Reference", "CPU")
 
 
 def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
-                   platform: str = "CPU") -> str:
+                   platform: str = "CPU", noise_method: str = "cholesky") -> str:
     """The engine a run uses: ``"plugin"`` or ``"python"``.
 
     Parameters
@@ -52,6 +54,10 @@ def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
         ``run.peclet``; a Brownian integrator at a finite value makes a Brownian run.
     platform : str
         The OpenMM platform's name (resolved, not ``"auto"``).
+    noise_method : {"cholesky", "lanczos"}
+        How a Brownian run's noise is drawn (``run.noise`` resolved for the chain's size,
+        :meth:`knotmm.dynamics.noise.NoiseGenerator.method_for`); ``"auto"`` keeps a Lanczos
+        run on the Python engine.
 
     Returns
     -------
@@ -64,6 +70,9 @@ def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
     if requested == PYTHON:
         return PYTHON
     import knotmm.plugin as plugin
+
+    brownian = (integrator in plugin.METHODS and plugin.METHODS[integrator][2]
+                and math.isfinite(peclet))
 
     if requested == PLUGIN:
         if not plugin.available():
@@ -79,9 +88,13 @@ def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
                         "(only %s); using the Python engine", platform,
                         " and ".join(PLUGIN_PLATFORMS))
             return PYTHON
+        if brownian and noise_method == "lanczos":
+            log.warning("run.engine = \"plugin\": the plugin draws Brownian noise by a dense "
+                        "Cholesky factor only, and this run's noise is Lanczos (run.noise, or "
+                        "more beads than a dense factor suits); using the Python engine")
+            return PYTHON
         return PLUGIN
-    brownian = integrator in plugin.METHODS and plugin.METHODS[integrator][2]
     if (not plugin.available() or integrator not in plugin.METHODS
-            or platform not in PLUGIN_PLATFORMS or (brownian and math.isfinite(peclet))):
+            or platform not in PLUGIN_PLATFORMS or (brownian and noise_method == "lanczos")):
         return PYTHON
     return PLUGIN

@@ -196,8 +196,12 @@ class Simulation:
         if engine is None:
             platform, _ = select_platform(cfg["run.platform"], np.shape(positions)[0],
                                           cfg["run.threads"])
-            engine = resolve_engine(cfg["run.engine"], integrator.name, cfg["run.peclet"],
-                                    platform.getName())
+            noise = getattr(integrator, "noise", None)  # Brownian: a NoiseGenerator
+            method_for = getattr(noise, "method_for", None)
+            engine = resolve_engine(
+                cfg["run.engine"], integrator.name, cfg["run.peclet"], platform.getName(),
+                noise_method=method_for(np.shape(positions)[0]) if method_for else "cholesky",
+            )
         return cls(
             positions,
             ChainModel.from_config(cfg),

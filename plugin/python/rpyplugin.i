@@ -11,6 +11,7 @@
 #include "openmm/RPMDIntegrator.h"
 #include "openmm/RPMDMonteCarloBarostat.h"
 #include "knotmm/RPYIntegrator.h"
+#include "RPYMobility.h"
 using OpenMM::Vec3;  // OpenMM's typemaps name it unqualified
 
 extern "C" void registerRPYKernelFactories();
@@ -18,6 +19,34 @@ extern "C" void registerRPYKernelFactories();
 // The OpenMM version this module was compiled against (libOpenMM's C++ ABI is not stable
 // across minor versions).
 static const char* builtAgainstOpenMMVersion() { return KNOTMM_OPENMM_BUILD_VERSION; }
+
+// The lower Cholesky factor of a symmetric positive definite matrix (array_like, n x n) as the
+// steps compute it: choleskyLower (LAPACK when a routine is set) or, with builtin=True, the
+// built-in routine. For tests; raises ValueError if the matrix is not positive definite.
+static PyObject* choleskyFactor(PyObject* matrix, bool builtin) {
+    PyArrayObject* in = (PyArrayObject*) PyArray_FROMANY(matrix, NPY_DOUBLE, 2, 2, NPY_ARRAY_CARRAY_RO);
+    if (in == NULL)
+        return NULL;
+    const npy_intp n = PyArray_DIM(in, 0);
+    if (PyArray_DIM(in, 1) != n) {
+        Py_DECREF(in);
+        PyErr_SetString(PyExc_ValueError, "matrix: expected a square array");
+        return NULL;
+    }
+    const double* data = (const double*) PyArray_DATA(in);
+    std::vector<double> a(data, data + n * n);
+    Py_DECREF(in);
+    const bool ok = builtin ? KnotMM::choleskyLowerBuiltin(a, (int) n) : KnotMM::choleskyLower(a, (int) n);
+    if (!ok) {
+        PyErr_SetString(PyExc_ValueError, "matrix: not positive definite");
+        return NULL;
+    }
+    npy_intp dims[2] = {n, n};
+    PyObject* out = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
+    if (out != NULL)
+        std::copy(a.begin(), a.end(), (double*) PyArray_DATA((PyArrayObject*) out));
+    return out;
+}
 
 // OpenMM's typemaps accept numpy arrays; they ask this first.
 static bool isNumpyAvailable() { return true; }
@@ -50,8 +79,12 @@ static bool isNumpyAvailable() { return true; }
 
 extern "C" void registerRPYKernelFactories();
 static const char* builtAgainstOpenMMVersion();
+static PyObject* choleskyFactor(PyObject* matrix, bool builtin);
 
 namespace KnotMM {
+
+void setCholeskyRoutine(unsigned long long address);
+unsigned long long getCholeskyRoutine();
 
 class RPYIntegrator : public OpenMM::Integrator {
 public:

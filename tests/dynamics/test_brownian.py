@@ -423,11 +423,16 @@ def test_integrator_from_config():
     # a Brownian integrator at Pe = inf is its deterministic counterpart
     em = integrator_from_config(RunConfig.from_dict({"run": {"integrator": "euler_maruyama"}}))
     assert em.kT == 0.0
-    # finite Pe alone: integrator "auto" and no timestep give ito_heun with 0.002 tau_d
+    # finite Pe alone: integrator "auto" and no timestep give leimkuhler_matthews, 0.01 tau_d
     auto = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 2.0}}))
-    assert isinstance(auto, ItoHeun) and auto.timestep == 0.002 and auto.kT == 0.5
-    # an explicit step is kept; a deterministic auto run keeps rk23 and 0.01 tau_d
-    kept = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 2.0, "timestep": 1e-3}}))
+    assert auto.name == "leimkuhler_matthews" and auto.timestep == 0.01 and auto.kT == 0.5
+    # ito_heun without a step gets 0.002 tau_d; an explicit step is kept; a deterministic
+    # auto run keeps rk23 and 0.01 tau_d
+    heun = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 2.0,
+                                                                "integrator": "ito_heun"}}))
+    assert isinstance(heun, ItoHeun) and heun.timestep == 0.002
+    kept = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 2.0, "timestep": 1e-3,
+                                                               "integrator": "ito_heun"}}))
     assert isinstance(kept, ItoHeun) and kept.timestep == 1e-3
     assert integrator_from_config(RunConfig.from_dict({})).timestep == 0.01
     # adaptive + finite Pe: one line naming the key and the fix

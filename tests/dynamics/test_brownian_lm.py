@@ -101,12 +101,12 @@ def test_infinite_peclet_is_euler(rng):
     assert not noise.at
 
 
-def test_registry_entry_and_auto_untouched():
+def test_registry_entry_and_auto_at_finite_peclet():
     info = REGISTRY[NAME]
     assert info.brownian and not info.adaptive and info.order == 1
     assert info.load() is LeimkuhlerMatthews and LeimkuhlerMatthews.name == NAME
     assert resolve(NAME, 2.0, None) == (NAME, 0.01)
-    assert resolve("auto", 2.0, None) == ("ito_heun", 0.002)
+    assert resolve("auto", 2.0, None) == (NAME, 0.01)
     integ = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 4.0,
                                                                 "integrator": NAME}}))
     assert isinstance(integ, LeimkuhlerMatthews) and integ.timestep == 0.01
@@ -341,22 +341,20 @@ def test_stiff_pairs_slow(h):
 
 # -- the chain through the Simulation: engine, resume, bonds ----------------------------------
 def _cfg(seed=3, beads=40, **run):
+    # the Python class (the plugin's counterpart: tests/plugin/test_plugin_lm.py)
     return RunConfig.from_dict({
         "knot": {"beads": beads},
         "model": {"gravity": 0.0},
         "run": {"peclet": 2.0, "integrator": NAME, "seed": seed, "platform": "Reference",
-                **run},
+                "engine": "python", **run},
     })
 
 
-def test_runs_on_the_python_engine(caplog):
-    """No plugin counterpart: "auto" and even "plugin" give the Python engine."""
-    from knotmm.engine.engines import resolve_engine
+def test_runs_on_the_python_engine():
+    """engine = "python" takes the Python class (the plugin has its own counterpart)."""
     from knotmm.engine.simulation import Simulation
 
-    assert resolve_engine("auto", NAME, 2.0) == "python"
-    assert resolve_engine("plugin", NAME, 2.0) == "python"
-    sim = Simulation.from_config(_cfg(engine="plugin"))
+    sim = Simulation.from_config(_cfg())
     assert sim.engine == "python" and sim._plugin is None
     assert isinstance(sim.integrator, LeimkuhlerMatthews)
     sim.step(3)

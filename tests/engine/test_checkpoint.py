@@ -100,7 +100,7 @@ def test_a_checkpoint_of_another_integrator_or_size_is_refused(tmp_path):
     with pytest.raises(TrajectoryFileError, match="ito_heun.*rk23"):
         _sim("rk23").loadCheckpoint(tmp_path / "c.npz")
     small = Simulation.from_config(
-        RunConfig.from_dict({**CONFIGS["ito_heun"], "knot": {"beads": 36}}))
+        RunConfig.from_dict({**CONFIGS["ito_heun"], "knot": {"beads": 36}}), engine="python")
     with pytest.raises(TrajectoryFileError, match="30 beads"):
         small.loadCheckpoint(tmp_path / "c.npz")
     (tmp_path / "bad.npz").write_bytes(b"no")

@@ -45,21 +45,39 @@ def test_missing_plugin_asked_for_warns_once_and_falls_back(monkeypatch, caplog)
 
 
 @needs_plugin
-def test_auto_takes_the_plugin_except_brownian_runs_and_gpus(caplog):
+def test_auto_takes_the_plugin_except_lanczos_noise_and_gpus(caplog):
     with caplog.at_level(logging.WARNING):
         assert resolve_engine("auto", "rk23") == "plugin"
         assert resolve_engine("auto", "heun", math.inf, "Reference") == "plugin"
         # an ito_heun without noise (Pe = inf) is Heun: cheaper in C++
         assert resolve_engine("auto", "ito_heun", math.inf) == "plugin"
-        # Brownian steps: the plugin's dense Cholesky costs more than the Python engine's
-        assert resolve_engine("auto", "ito_heun", 2.0) == "python"
-        assert resolve_engine("auto", "euler_maruyama", 50.0) == "python"
+        # Brownian steps: the plugin (LAPACK Cholesky, no Python round trips) is cheaper
+        assert resolve_engine("auto", "ito_heun", 2.0) == "plugin"
+        assert resolve_engine("auto", "leimkuhler_matthews", 2.0) == "plugin"
+        assert resolve_engine("auto", "euler_maruyama", 50.0) == "plugin"
+        # ... except with Lanczos noise, which the plugin does not have
+        assert resolve_engine("auto", "ito_heun", 2.0, "CPU", "lanczos") == "python"
+        assert resolve_engine("auto", "heun", math.inf, "CPU", "lanczos") == "plugin"
         assert resolve_engine("auto", "rk23", math.inf, "CUDA") == "python"
         assert resolve_engine("plugin", "ito_heun", 2.0) == "plugin"  # asked for: granted
     assert not caplog.records
     with caplog.at_level(logging.WARNING):
         assert resolve_engine("plugin", "rk23", math.inf, "CUDA") == "python"
     assert len(caplog.records) == 1 and "CUDA" in caplog.records[0].getMessage()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):  # asked for, but its noise would not be Lanczos's
+        assert resolve_engine("plugin", "ito_heun", 2.0, "CPU", "lanczos") == "python"
+    assert len(caplog.records) == 1 and "Lanczos" in caplog.records[0].getMessage()
+
+
+@needs_plugin
+@pytest.mark.parametrize(("noise", "engine"), [("cholesky", "plugin"), ("lanczos", "python"),
+                                               ("auto", "plugin")])
+def test_a_runs_noise_method_decides_its_engine(noise, engine):
+    """``run.noise`` (``"auto"``: Cholesky up to 300 beads) reaches the engine choice."""
+    cfg = RunConfig.from_dict({"knot": {"beads": 40}, "run": {"peclet": 2.0, "noise": noise}})
+    sim = Simulation.from_config(cfg)
+    assert sim.engine == engine and sim.integrator.name == "leimkuhler_matthews"
 
 
 # -- plugin against Python --------------------------------------------------------------------
@@ -99,7 +117,7 @@ def test_plugin_steps_one_at_a_time_like_python():
 def test_from_config_resolves_run_engine():
     assert Simulation.from_config(_cfg(engine="plugin")).engine == "plugin"
     assert Simulation.from_config(_cfg(engine="python")).engine == "python"
-    assert Simulation.from_config(_cfg(engine="auto", peclet=2.0)).engine == "python"
+    assert Simulation.from_config(_cfg(engine="auto", peclet=2.0)).engine == "plugin"
 
 
 # -- faults ----------------------------------------------------------------------------------

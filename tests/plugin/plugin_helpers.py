@@ -20,3 +20,14 @@ def positions_of(ctx) -> np.ndarray:
     return ctx.getState(getPositions=True).getPositions(asNumpy=True).value_in_unit(
         openmm.unit.nanometer
     )
+
+
+def dimer_system(k, l0):
+    """Two beads and a harmonic bond ``k/2 (r - l0)^2`` (k in kJ/mol/nm^2, l0 in nm)."""
+    system = openmm.System()
+    for _ in range(2):
+        system.addParticle(1.0)
+    bond = openmm.HarmonicBondForce()
+    bond.addBond(0, 1, l0, k)
+    system.addForce(bond)
+    return system

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import openmm
 import pytest
-from plugin_helpers import plugin_context, positions_of
+from plugin_helpers import dimer_system, plugin_context, positions_of
 from scipy.integrate import quad
 
 from knotmm.plugin import RPYIntegrator
@@ -44,16 +44,6 @@ def test_free_bead_msd(method, kT, mu0):
     se = expected * np.sqrt(2.0 / d.size)
     assert abs(np.mean(d**2) - expected) < 4.5 * se
     assert abs(np.mean(d)) < 4.5 * np.sqrt(expected / d.size)
-
-
-def dimer_system(k, l0):
-    system = openmm.System()
-    for _ in range(2):
-        system.addParticle(1.0)
-    bond = openmm.HarmonicBondForce()
-    bond.addBond(0, 1, l0, k)
-    system.addForce(bond)
-    return system
 
 
 def boltzmann_moments(k, l0, kT):

@@ -23,11 +23,12 @@ def counters(integ):
     ("heun", {}),
     ("ito_heun", {"kT": 0.5, "seed": 11}),
     ("euler_maruyama", {"kT": 0.5, "seed": 12}),
+    ("leimkuhler_matthews", {"kT": 0.5, "seed": 13}),
 ])
 @pytest.mark.parametrize("platform", ["Reference", "CPU"])
 def test_checkpoint_round_trip_is_bit_identical(method, kwargs, platform):
     x = torus_knot(2, 3, 40)
-    step = 0.002 if method in ("ito_heun", "euler_maruyama") else 0.01
+    step = 0.002 if method in ("ito_heun", "euler_maruyama") else 0.01  # LM: 0.01 as its default
     integ = RPYIntegrator(step, method, **kwargs)
     ctx = plugin_context(build_system(x), x, integ, platform)
     integ.stepTo(0.2)

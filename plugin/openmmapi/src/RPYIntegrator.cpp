@@ -18,7 +18,7 @@ using namespace KnotMM;
 namespace {
 
 const char* const METHODS[] = {"euler", "heun", "midpoint", "rk23", "rkc2",
-                               "euler_maruyama", "ito_heun"};
+                               "euler_maruyama", "ito_heun", "leimkuhler_matthews"};
 
 std::string fmt(double x) {
     std::ostringstream s;
@@ -45,7 +45,7 @@ RPYIntegrator::RPYIntegrator(double stepSize, const std::string& method, double 
         known = known || method == m;
     if (!known)
         throw OpenMMException("method='" + method + "': expected one of euler, heun, midpoint, "
-                              "rk23, rkc2, euler_maruyama, ito_heun");
+                              "rk23, rkc2, euler_maruyama, ito_heun, leimkuhler_matthews");
     requirePositive(stepSize, "stepSize", " (in ps = tau_d)");
     requirePositive(errorTolerance, "errorTolerance", " (in nm = d)");
     setStepSize(stepSize);
@@ -55,7 +55,7 @@ RPYIntegrator::RPYIntegrator(double stepSize, const std::string& method, double 
 bool RPYIntegrator::isAdaptive() const { return method == "rk23" || method == "rkc2"; }
 
 bool RPYIntegrator::isStochastic() const {
-    return method == "euler_maruyama" || method == "ito_heun";
+    return method == "euler_maruyama" || method == "ito_heun" || method == "leimkuhler_matthews";
 }
 
 void RPYIntegrator::setErrorTolerance(double tol) {
@@ -82,7 +82,7 @@ void RPYIntegrator::setThermalEnergy(double kT) {
         throw OpenMMException("thermalEnergy=" + fmt(kT) + ": must be >= 0 (kT in kJ/mol = F0 d; 0 is deterministic)");
     if (kT > 0 && !isStochastic())
         throw OpenMMException("thermalEnergy=" + fmt(kT) + ": method '" + method +
-                              "' is deterministic; use euler_maruyama or ito_heun for kT > 0");
+                              "' is deterministic; use euler_maruyama, ito_heun or leimkuhler_matthews for kT > 0");
     thermalEnergy = kT;
 }
 
@@ -129,7 +129,7 @@ void RPYIntegrator::initialize(ContextImpl& contextRef) {
                                   std::to_string(beads) + ")");
     }
     if (thermalEnergy > 0 && !isStochastic())
-        throw OpenMMException("thermalEnergy > 0 needs euler_maruyama or ito_heun, not " + method);
+        throw OpenMMException("thermalEnergy > 0 needs euler_maruyama, ito_heun or leimkuhler_matthews, not " + method);
     if (isAdaptive())  // as knotmm's adaptive integrators: never start above the largest step
         setStepSize(std::min(getStepSize(), maxStepSize));
     context = &contextRef;

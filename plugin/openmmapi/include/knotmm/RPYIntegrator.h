@@ -21,8 +21,8 @@ class RPYIntegrator : public OpenMM::Integrator {
 public:
     /**
      * @param stepSize     first (adaptive) or fixed step, in ps (= tau_d)
-     * @param method       "euler", "heun", "midpoint", "rk23", "rkc2", "euler_maruyama"
-     *                     or "ito_heun"
+     * @param method       "euler", "heun", "midpoint", "rk23", "rkc2", "euler_maruyama",
+     *                     "ito_heun" or "leimkuhler_matthews"
      * @param errorTolerance  largest per-bead displacement error per step (adaptive), in nm
      */
     explicit RPYIntegrator(double stepSize, const std::string& method = "rk23",
@@ -31,7 +31,7 @@ public:
     const std::string& getMethod() const { return method; }
     /** True for rk23 and rkc2 (the step size follows error control). */
     bool isAdaptive() const;
-    /** True for euler_maruyama and ito_heun (they add noise when kT > 0). */
+    /** True for euler_maruyama, ito_heun and leimkuhler_matthews (noise when kT > 0). */
     bool isStochastic() const;
 
     double getErrorTolerance() const { return errorTolerance; }

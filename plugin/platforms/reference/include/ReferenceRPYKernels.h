@@ -50,7 +50,7 @@ public:
     typedef std::vector<double> Vec;  // 3n numbers, bead-major (x0, y0, z0, x1, ...)
 
 private:
-    enum Method { EULER, HEUN, MIDPOINT, RK23, RKC2, EULER_MARUYAMA, ITO_HEUN };
+    enum Method { EULER, HEUN, MIDPOINT, RK23, RKC2, EULER_MARUYAMA, ITO_HEUN, LEIMKUHLER_MATTHEWS };
     struct Chebyshev {
         std::vector<double> mu, nu, muT, gammaT;
     };
@@ -62,7 +62,7 @@ private:
     double stepRK23(OpenMM::ContextImpl& context, RPYIntegrator& integrator, double maxDt);
     double stepRKC2(OpenMM::ContextImpl& context, RPYIntegrator& integrator, double maxDt);
     double spectralRadius(OpenMM::ContextImpl& context, const Vec& y, const Vec& f0);
-    void noiseIncrement(const Vec& y, double h, Vec& w);
+    void noiseSample(const Vec& y, double scale, Vec& w);
     const Chebyshev& chebyshev(int s);
     double errorNorm(const Vec& err, double tolerance) const;
 
@@ -87,9 +87,13 @@ private:
     Vec eig;
     int stepsSinceRho = 0, lastStages = 0;
     long long nEvaluations = 0, nAccepted = 0, nRejected = 0;
+    // leimkuhler_matthews: the half kick drawn in the last step, used again in the next one
+    // while the Context still has the positions that step ended at (kickPositions)
+    bool haveKick = false;
+    Vec kick, kickPositions;
 
     // scratch
-    Vec xs, fs, vs, k2, k3, k4, y1, ytmp, err, w, mat;
+    Vec xs, fs, vs, k2, k3, k4, y1, ytmp, err, w, xi, mat;
     std::vector<Vec> stage;
     std::map<int, Chebyshev> chebyshevCache;
 };

@@ -3,7 +3,9 @@
 #include "openmm/internal/ThreadPool.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstdint>
 
 using namespace KnotMM;
 
@@ -99,28 +101,74 @@ void RPYMobility::velocities(int n, const double* x, const double* f, double* v)
     pool->waitForThreads();
 }
 
-void RPYMobility::matrix(int n, const double* x, std::vector<double>& m) const {
+void RPYMobility::lowerMatrix(int n, const double* x, std::vector<double>& m) const {
+    // Row by row (bead i, then its three rows), blocks j <= i only: contiguous writes, half
+    // the pairs of a full fill, and nothing above the diagonal is touched (the Cholesky
+    // routines read only the lower triangle).
     const int dim = 3 * n;
-    m.assign((size_t) dim * dim, 0.0);
+    m.resize((size_t) dim * dim);
+    const double invD = 1.0 / d;
     for (int i = 0; i < n; i++) {
-        for (int k = 0; k < 3; k++)
-            m[(size_t) (3 * i + k) * dim + 3 * i + k] = mu0;
-        for (int j = i + 1; j < n; j++) {
+        double* rows[3] = {&m[(size_t) (3 * i) * dim], &m[(size_t) (3 * i + 1) * dim], &m[(size_t) (3 * i + 2) * dim]};
+        for (int j = 0; j < i; j++) {
             const double rv[3] = {x[j] - x[i], x[n + j] - x[n + i], x[2 * n + j] - x[2 * n + i]};
-            const Coefficients c = pairCoefficients(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2], d, 1.0 / d);
-            const double a = c.a, b = c.b;
+            const Coefficients c = pairCoefficients(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2], d, invD);
             for (int k = 0; k < 3; k++)
-                for (int l = 0; l < 3; l++) {
-                    const double val = mu0 * (b * rv[k] * rv[l] + (k == l ? a : 0.0));
-                    m[(size_t) (3 * i + k) * dim + 3 * j + l] = val;
-                    m[(size_t) (3 * j + l) * dim + 3 * i + k] = val;
-                }
+                for (int l = 0; l < 3; l++)
+                    rows[k][3 * j + l] = mu0 * (c.b * rv[k] * rv[l] + (k == l ? c.a : 0.0));
         }
+        for (int k = 0; k < 3; k++)
+            for (int l = 0; l <= k; l++)
+                rows[k][3 * i + l] = k == l ? mu0 : 0.0;
+    }
+}
+
+namespace {
+// LAPACK dpotrf (Fortran convention: every argument by pointer), or null for the built-in
+// routine. Atomic: set once from Python, read by every factorisation.
+typedef void (*PotrfRoutine)(char* uplo, int* n, double* a, int* lda, int* info);
+std::atomic<PotrfRoutine> potrfRoutine{nullptr};
+} // namespace
+
+void KnotMM::setCholeskyRoutine(unsigned long long address) {
+    potrfRoutine.store(reinterpret_cast<PotrfRoutine>(static_cast<uintptr_t>(address)));
+}
+
+unsigned long long KnotMM::getCholeskyRoutine() {
+    return static_cast<unsigned long long>(reinterpret_cast<uintptr_t>(potrfRoutine.load()));
+}
+
+bool KnotMM::choleskyLower(std::vector<double>& a, int n) {
+    PotrfRoutine potrf = potrfRoutine.load();
+    if (potrf == nullptr)
+        return choleskyLowerBuiltin(a, n);
+    // The row-major array is the column-major transpose, which is the same symmetric matrix;
+    // LAPACK's upper factor U (A = U^T U, column-major) is then L = U^T in the row-major lower
+    // triangle. LAPACK leaves the other triangle as it was: zero it.
+    char uplo = 'U';
+    int size = n, lda = n, info = 0;
+    potrf(&uplo, &size, a.data(), &lda, &info);
+    if (info != 0)
+        return false;
+    for (int i = 0; i < n; i++)
+        std::fill(a.begin() + (size_t) i * n + i + 1, a.begin() + (size_t) (i + 1) * n, 0.0);
+    return true;
+}
+
+KNOTMM_CLONES
+void KnotMM::lowerTimes(const std::vector<double>& lower, int n, const double* xi, double scale, double* out) {
+    for (int i = 0; i < n; i++) {
+        const double* li = &lower[(size_t) i * n];
+        double s = 0.0;
+#pragma omp simd reduction(+ : s)
+        for (int k = 0; k <= i; k++)
+            s += li[k] * xi[k];
+        out[i] = scale * s;
     }
 }
 
 KNOTMM_CLONES
-bool KnotMM::choleskyLower(std::vector<double>& a, int n) {
+bool KnotMM::choleskyLowerBuiltin(std::vector<double>& a, int n) {
     // Row-oriented Cholesky-Crout: L[i][j] = (A[i][j] - sum_k<j L[i][k] L[j][k]) / L[j][j];
     // the inner sums are contiguous dot products. The upper triangle is zeroed.
     for (int i = 0; i < n; i++) {

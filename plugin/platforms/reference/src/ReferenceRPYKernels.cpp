@@ -118,7 +118,8 @@ std::string fmt(double x) {
     return s.str();
 }
 
-const int KERNEL_CHECKPOINT_VERSION = 2;
+// 3: leimkuhler_matthews's held kick; 2 (no kick) still loads.
+const int KERNEL_CHECKPOINT_VERSION = 3;
 
 } // namespace
 
@@ -127,10 +128,11 @@ const int KERNEL_CHECKPOINT_VERSION = 2;
 
 void ReferenceIntegrateRPYStepKernel::initialize(const System& system, const RPYIntegrator& integrator) {
     const std::string& name = integrator.getMethod();
-    const char* names[] = {"euler", "heun", "midpoint", "rk23", "rkc2", "euler_maruyama", "ito_heun"};
-    const Method methods[] = {EULER, HEUN, MIDPOINT, RK23, RKC2, EULER_MARUYAMA, ITO_HEUN};
+    const char* names[] = {"euler", "heun", "midpoint", "rk23", "rkc2", "euler_maruyama", "ito_heun",
+                           "leimkuhler_matthews"};
+    const Method methods[] = {EULER, HEUN, MIDPOINT, RK23, RKC2, EULER_MARUYAMA, ITO_HEUN, LEIMKUHLER_MATTHEWS};
     bool found = false;
-    for (int i = 0; i < 7; i++)
+    for (int i = 0; i < 8; i++)
         if (name == names[i]) {
             method = methods[i];
             found = true;
@@ -160,7 +162,7 @@ void ReferenceIntegrateRPYStepKernel::initialize(const System& system, const RPY
     int seed = integrator.getRandomNumberSeed();
     noise.seed(seed != 0 ? (uint64_t) (uint32_t) seed : (uint64_t) std::random_device()() << 32 ^ std::random_device()());
     rkcStart = integrator.getSpectralRadiusStartVector();
-    for (Vec* v : {&y, &k1, &k2, &k3, &k4, &y1, &ytmp, &err, &w, &xs, &fs, &vs})
+    for (Vec* v : {&y, &k1, &k2, &k3, &k4, &y1, &ytmp, &err, &w, &xi, &xs, &fs, &vs})
         v->assign(3 * n, 0.0);
 }
 
@@ -252,30 +254,23 @@ double ReferenceIntegrateRPYStepKernel::errorNorm(const Vec& e, double tolerance
     return finite && std::isfinite(norm) ? norm / tolerance : std::numeric_limits<double>::infinity();
 }
 
-void ReferenceIntegrateRPYStepKernel::noiseIncrement(const Vec& yy, double h, Vec& out) {
-    if (kT == 0.0) {
+void ReferenceIntegrateRPYStepKernel::noiseSample(const Vec& yy, double scale, Vec& out) {
+    if (scale == 0.0) {
         std::fill(out.begin(), out.end(), 0.0);
         return;
     }
-    // w = sqrt(2 kT h) L xi with L L^T = mu (exact: dense Cholesky of the 3n x 3n mobility)
+    // out = scale L xi with L L^T = mu (exact: dense Cholesky of the 3n x 3n mobility)
     for (int b = 0; b < n; b++)
         for (int k = 0; k < 3; k++)
             xs[k * n + b] = yy[3 * b + k];
-    mobility.matrix(n, xs.data(), mat);
+    mobility.lowerMatrix(n, xs.data(), mat);
     const int dim = 3 * n;
     if (!choleskyLower(mat, dim))
         throw OpenMMException("RPYIntegrator: the RPY mobility is not positive definite at these "
                               "positions (two beads at the same point?)");
     for (int i = 0; i < dim; i++)
-        ytmp[i] = noise.normal();
-    const double scale = std::sqrt(2.0 * kT * h);
-    for (int i = 0; i < dim; i++) {
-        const double* li = &mat[(size_t) i * dim];
-        double s = 0.0;
-        for (int k = 0; k <= i; k++)
-            s += li[k] * ytmp[k];
-        out[i] = scale * s;
-    }
+        xi[i] = noise.normal();
+    lowerTimes(mat, dim, xi.data(), scale, out.data());
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -300,6 +295,8 @@ double ReferenceIntegrateRPYStepKernel::execute(ContextImpl& context, RPYIntegra
     // Context.loadCheckpoint, which restores both and then reports them as changed.)
     if (haveK1 && (y != k1Positions || context.getParameters() != k1Parameters))
         invalidateCache();
+    if (haveKick && y != kickPositions)
+        haveKick = false;  // moved from outside: as knotmm's LeimkuhlerMatthews.reset()
     const double t0 = context.getTime();
     const double maxDt = std::isfinite(targetTime) ? targetTime - t0 : std::numeric_limits<double>::infinity();
     double h;
@@ -319,9 +316,12 @@ double ReferenceIntegrateRPYStepKernel::execute(ContextImpl& context, RPYIntegra
     catch (...) {
         writePositions(context, y, false);
         haveK1 = false;
+        haveKick = false;
         throw;
     }
     writePositions(context, y1, false);
+    if (haveKick)
+        kickPositions = y1;
     double t1 = t0 + h;
     if (std::isfinite(targetTime) && std::fabs(targetTime - t1) <= 1e-9 * std::max(1.0, std::fabs(targetTime)))
         t1 = targetTime;  // land exactly (knotmm.simulation's rule)
@@ -337,7 +337,7 @@ double ReferenceIntegrateRPYStepKernel::stepFixed(ContextImpl& context, double h
     case EULER:
     case EULER_MARUYAMA:
         // y1 = y + h v(y) + sqrt(2 kT h) B xi
-        noiseIncrement(y, h, w);
+        noiseSample(y, std::sqrt(2.0 * kT * h), w);
         velocity(context, y, k1);
         for (int i = 0; i < m; i++)
             y1[i] = y[i] + h * k1[i] + w[i];
@@ -345,7 +345,7 @@ double ReferenceIntegrateRPYStepKernel::stepFixed(ContextImpl& context, double h
     case HEUN:
     case ITO_HEUN:
         // y* = y + h v(y) + W;  y1 = y + h/2 (v(y) + v(y*)) + W
-        noiseIncrement(y, h, w);
+        noiseSample(y, std::sqrt(2.0 * kT * h), w);
         velocity(context, y, k1);
         for (int i = 0; i < m; i++)
             ytmp[i] = y[i] + h * k1[i] + w[i];
@@ -353,6 +353,28 @@ double ReferenceIntegrateRPYStepKernel::stepFixed(ContextImpl& context, double h
         for (int i = 0; i < m; i++)
             y1[i] = y[i] + (0.5 * h) * (k1[i] + k2[i]) + w[i];
         break;
+    case LEIMKUHLER_MATTHEWS: {
+        // p = y + h v(y) + k;  k <- sqrt(kT h / 2) B(p) xi (held for the next step);  y1 = p + k
+        // (knotmm.dynamics.brownian.LeimkuhlerMatthews; the first held kick is drawn at y)
+        velocity(context, y, k1);
+        if (kT == 0.0) {
+            for (int i = 0; i < m; i++)
+                y1[i] = y[i] + h * k1[i];
+            break;
+        }
+        const double scale = std::sqrt(0.5 * kT * h);
+        if (!haveKick || (int) kick.size() != m) {
+            kick.assign(m, 0.0);
+            noiseSample(y, scale, kick);
+            haveKick = true;
+        }
+        for (int i = 0; i < m; i++)
+            ytmp[i] = y[i] + h * k1[i] + kick[i];
+        noiseSample(ytmp, scale, kick);
+        for (int i = 0; i < m; i++)
+            y1[i] = ytmp[i] + kick[i];
+        break;
+    }
     case MIDPOINT:
         // y1 = y + h v(y + h/2 v(y))
         velocity(context, y, k1);
@@ -616,6 +638,9 @@ void ReferenceIntegrateRPYStepKernel::createCheckpoint(std::ostream& stream) con
     put(stream, haveRkcHOld);
     put(stream, rkcHOld);
     noise.write(stream);
+    put(stream, haveKick);
+    putVec(stream, haveKick ? kick : Vec());
+    putVec(stream, haveKick ? kickPositions : Vec());
 }
 
 void ReferenceIntegrateRPYStepKernel::loadCheckpoint(std::istream& stream) {
@@ -623,7 +648,7 @@ void ReferenceIntegrateRPYStepKernel::loadCheckpoint(std::istream& stream) {
     get(stream, version);
     get(stream, savedMethod);
     get(stream, savedN);
-    if (version != KERNEL_CHECKPOINT_VERSION || savedMethod != (int) method || savedN != n)
+    if ((version != KERNEL_CHECKPOINT_VERSION && version != 2) || savedMethod != (int) method || savedN != n)
         throw OpenMMException("RPYIntegrator: the checkpoint was written with another method, "
                               "bead count or plugin version");
     get(stream, nEvaluations);
@@ -659,6 +684,12 @@ void ReferenceIntegrateRPYStepKernel::loadCheckpoint(std::istream& stream) {
     get(stream, haveRkcHOld);
     get(stream, rkcHOld);
     noise.read(stream);
+    haveKick = false;
+    if (version >= 3) {
+        get(stream, haveKick);
+        getVec(stream, kick);
+        getVec(stream, kickPositions);
+    }
     if (!stream)
         throw OpenMMException("RPYIntegrator: the checkpoint is truncated");
 }
