@@ -31,10 +31,15 @@ beads), ``forces`` = (det / evaluations - no-force). ``cholesky`` / ``cholesky b
 the plugin's factorisation alone (``rpyplugin.choleskyFactor``, LAPACK / the built-in loop,
 with a copy of the matrix in and out).
 
+``--noise lanczos`` gives both engines Lanczos noise (``run.noise``; the numba program keeps
+its Cholesky noise) and skips the pieces, which assume Cholesky.
+
 BLAS/LAPACK run on one thread (``threadpoolctl``) unless ``--blas-threads`` says otherwise::
 
     python benchmarks/bench_brownian_step.py                     # about 1 min
     python benchmarks/bench_brownian_step.py --schemes ito_heun --steps 300
+    python benchmarks/bench_brownian_step.py --schemes ito_heun --beads 400 --noise lanczos \
+        --steps 20 --burn 0.01
 """
 
 from __future__ import annotations
@@ -80,7 +85,7 @@ def config(scheme, args, engine):
         "knot": {"beads": args.beads},
         "model": {"gravity": 0.0},
         "run": {"peclet": args.peclet, "integrator": scheme, "timestep": STEPS[scheme],
-                "seed": args.seed, "platform": "CPU", "engine": engine, "noise": "cholesky"},
+                "seed": args.seed, "platform": "CPU", "engine": engine, "noise": args.noise},
     })
 
 
@@ -153,6 +158,8 @@ def main(argv=None):
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--budget", type=float, default=0.5, help="s per piece timing")
     p.add_argument("--blas-threads", type=int, default=1)
+    p.add_argument("--noise", default="cholesky", choices=["cholesky", "lanczos"],
+                   help="the engines' noise (the numba program's is Cholesky)")
     args = p.parse_args(argv)
     with threadpool_limits(args.blas_threads):
         for scheme in args.schemes:
@@ -195,8 +202,8 @@ def run_scheme(scheme, args):
     med = {k: statistics.median(v[0]) for k, v in times.items()}
     cpu = {k: statistics.median(v[1]) for k, v in times.items()}
     print(f"\n{scheme}, dt = {dt:g} tau_d, T(2,3) N = {args.beads}, Pe = {args.peclet:g}, "
-          f"gravity 0, {steps} steps per run, medians of {args.repeats} interleaved; load "
-          f"{min(loads):.2f}-{max(loads):.2f}")
+          f"gravity 0, {args.noise} noise, {steps} steps per run, medians of {args.repeats} "
+          f"interleaved; load {min(loads):.2f}-{max(loads):.2f}")
     print(f"  {'':<7} {'wall':>8} {'cpu':>8} us/step  {'wall/numba':>10} {'cpu/numba':>10} "
           f"{'tau_d/s':>8} {'x today':>7}  runs (wall/cpu)")
     for k in med:
@@ -207,6 +214,8 @@ def run_scheme(scheme, args):
         print(f"  {k:<7} {med[k]:8.0f} {cpu[k]:8.0f}          {med[k] / med['numba']:10.2f} "
               f"{cpu[k] / cpu['numba']:10.2f} {rate:8.2f} "
               f"{'' if today is None else f'{rate / today:7.2f}'}  ({spread})")
+    if args.noise != "cholesky":
+        return  # the pieces below assume Cholesky noise
     n_eval, n_noise = COUNTS[scheme]
     budget = args.budget
     trajectory = [state["numba"]]

@@ -12,9 +12,8 @@
   plugin too (its Cholesky is LAPACK's, as the Python engine's, and its step has no Python
   round trips: T(2,3), N = 90, Pe = 2, CPU time per step 1.12 against 1.68 ms with ito_heun
   at dt = 0.002 and 0.96 against 1.69 ms with leimkuhler_matthews at 0.01,
-  ``benchmarks/bench_brownian_step.py``), except where the noise is Lanczos's
-  (``noise_method``; ``run.noise = "auto"`` above 300 beads): the plugin only has the dense
-  Cholesky factor.
+  ``benchmarks/bench_brownian_step.py``), whether the noise is Cholesky's or Lanczos's
+  (``run.noise``; ``"auto"`` is Lanczos above 300 beads): the plugin has both.
 
 Both engines take the same steps for deterministic methods (positions equal to 1e-10 d over
 1 tau_d on the Reference platform); the Brownian methods use different noise streams with
@@ -51,13 +50,14 @@ def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
     integrator : str
         The resolved ``run.integrator`` (a registry name, not ``"auto"``).
     peclet : float
-        ``run.peclet``; a Brownian integrator at a finite value makes a Brownian run.
+        ``run.peclet``. The plugin runs Brownian and deterministic runs alike, so it does
+        not change the choice; kept so callers can pass it.
     platform : str
         The OpenMM platform's name (resolved, not ``"auto"``).
     noise_method : {"cholesky", "lanczos"}
         How a Brownian run's noise is drawn (``run.noise`` resolved for the chain's size,
-        :meth:`knotmm.dynamics.noise.NoiseGenerator.method_for`); ``"auto"`` keeps a Lanczos
-        run on the Python engine.
+        :meth:`knotmm.dynamics.noise.NoiseGenerator.method_for`). Both engines draw either
+        kind, so it does not change the choice; kept so callers can pass it.
 
     Returns
     -------
@@ -70,9 +70,6 @@ def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
     if requested == PYTHON:
         return PYTHON
     import knotmm.plugin as plugin
-
-    brownian = (integrator in plugin.METHODS and plugin.METHODS[integrator][2]
-                and math.isfinite(peclet))
 
     if requested == PLUGIN:
         if not plugin.available():
@@ -88,13 +85,8 @@ def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
                         "(only %s); using the Python engine", platform,
                         " and ".join(PLUGIN_PLATFORMS))
             return PYTHON
-        if brownian and noise_method == "lanczos":
-            log.warning("run.engine = \"plugin\": the plugin draws Brownian noise by a dense "
-                        "Cholesky factor only, and this run's noise is Lanczos (run.noise, or "
-                        "more beads than a dense factor suits); using the Python engine")
-            return PYTHON
         return PLUGIN
     if (not plugin.available() or integrator not in plugin.METHODS
-            or platform not in PLUGIN_PLATFORMS or (brownian and noise_method == "lanczos")):
+            or platform not in PLUGIN_PLATFORMS):
         return PYTHON
     return PLUGIN

@@ -2,7 +2,8 @@
 
 :class:`knotmm.engine.simulation.Simulation` with ``engine = "plugin"`` binds an
 :class:`~knotmm.plugin.RPYIntegrator` to its OpenMM Context (same method, step, tolerance,
-step bounds; ``kT = 1 / run.peclet`` in F0 d; the seed from ``run.seed``) and hands each
+step bounds; ``kT = 1 / run.peclet`` in F0 d; the seed from ``run.seed``; the noise method,
+``run.noise`` resolved for the chain's size, and ``run.lanczos_tolerance``) and hands each
 stretch up to the next report time to :meth:`PluginEngine.advance_to`, one ``stepTo`` call
 in C++. Then Python reads the positions (float64) once, updates the Simulation's time, step
 and evaluation counts and the Python integrator's counters (which the run's summary and
@@ -63,6 +64,23 @@ class PluginEngine:
         self.mirror = integrator
         self.rpy = from_python_integrator(integrator, threads=threads)
         self.adaptive = bool(getattr(integrator, "adaptive", False))
+        self._noise_resolved = False
+
+    def _resolve_noise(self, sim) -> None:
+        """Set the plugin's noise method for ``sim``'s chain size, once.
+
+        ``run.noise = "auto"`` depends on the bead count
+        (:meth:`knotmm.dynamics.noise.NoiseGenerator.method_for`), which the Simulation
+        knows only after it made this engine; the method is a setting the plugin reads at
+        every step, so setting it before the first step is enough.
+        """
+        if not self._noise_resolved:
+            from knotmm.plugin import noise_settings
+
+            method, tolerance = noise_settings(self.mirror, sim.n_beads)
+            self.rpy.setNoiseMethod(method)
+            self.rpy.setLanczosTolerance(tolerance)
+            self._noise_resolved = True
 
     def stiffness(self, sim, rkc2) -> float:
         """The plugin rkc2's spectral-radius estimate at ``sim``'s positions, in 1/tau_d.
@@ -123,6 +141,7 @@ class PluginEngine:
             stretch); ``sim`` then holds the last good state.
         """
         sim._sync_context()  # reporters may have moved the Context's positions
+        self._resolve_noise(sim)
         start = sim.context.createCheckpoint()
         before = self._counts()
         try:
@@ -150,6 +169,7 @@ class PluginEngine:
             The step taken, in tau_d.
         """
         sim._sync_context()  # reporters may have moved the Context's positions
+        self._resolve_noise(sim)
         remaining = target - sim.time
         before = self._counts()
         h = self._step_size()

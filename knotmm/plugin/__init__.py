@@ -34,14 +34,20 @@ package never fails; :func:`available` says whether the plugin loaded and :func:
 why not, so callers can fall back to the Python engine. The environment variable
 ``KNOTMM_NO_PLUGIN=1`` makes it unavailable on purpose (to test or compare the fallback).
 
-Noise: ``B`` is the lower Cholesky factor of the dense mobility. The first stochastic
-:class:`RPYIntegrator` made in a process hands the plugin LAPACK's ``dpotrf`` from scipy
-(:func:`use_lapack_cholesky`: the C function pointer of ``scipy.linalg.cython_lapack``, the
-way numba's ``np.linalg.cholesky`` finds LAPACK; no link step, no new dependency), 2-3x
-faster than the plugin's built-in unblocked routine at N = 90; without scipy, or for the
-plugin used from C++, the built-in routine factorises (same factor to rounding). Deterministic
-runs never import scipy. The factorisation runs on as many threads as the BLAS library is
-allowed (``threadpoolctl``; :class:`knotmm.engine.simulation.Simulation` allows one).
+Noise (``noise``, ``setNoiseMethod``): ``"cholesky"`` (the default) takes ``B`` as the lower
+Cholesky factor of the dense mobility; ``"lanczos"`` computes ``mu^(1/2) xi`` by the Krylov
+method of :func:`knotmm.dynamics.noise.lanczos_sqrt` (full reorthogonalisation, stop when
+successive iterates change by less than ``lanczos_tolerance``, relative), matrix-free with the
+RPY pair loop of the velocities; both draw 3N normals per sample. The first stochastic
+:class:`RPYIntegrator` made in a process hands the plugin LAPACK's ``dpotrf`` (Cholesky) and
+``dstev`` (the Lanczos tridiagonal matrix's eigen-decomposition) from scipy
+(:func:`use_lapack_cholesky`: the C function pointers of ``scipy.linalg.cython_lapack``, the
+way numba's ``np.linalg.cholesky`` finds LAPACK; no link step, no new dependency); ``dpotrf``
+is 2-3x faster than the plugin's built-in unblocked routine at N = 90. Without scipy, or for
+the plugin used from C++, the built-in routines (Cholesky-Crout; implicit QL for the
+tridiagonal matrix) take their place (same results to rounding). Deterministic runs never
+import scipy. The factorisation runs on as many threads as the BLAS library is allowed
+(``threadpoolctl``; :class:`knotmm.engine.simulation.Simulation` allows one).
 """
 
 from __future__ import annotations
@@ -62,6 +68,7 @@ __all__ = [
     "load_error",
     "from_python_integrator",
     "METHODS",
+    "noise_settings",
     "use_lapack_cholesky",
 ]
 
@@ -152,12 +159,15 @@ _lapack: bool | None = None  # None: not decided yet
 
 
 def use_lapack_cholesky() -> bool:
-    """Hand the plugin LAPACK's ``dpotrf`` for its Cholesky factors, once; True if in use.
+    """Hand the plugin LAPACK's ``dpotrf`` and ``dstev`` for its noise, once; True if in use.
 
-    Takes the C function pointer that ``scipy.linalg.cython_lapack`` exports (a PyCapsule,
-    ``void dpotrf(char *uplo, int *n, double *a, int *lda, int *info)``) and gives its address
-    to the plugin (``setCholeskyRoutine``), which then calls it for every noise sample; scipy
-    stays imported, so the library stays loaded. Without scipy (or without the plugin) the
+    Takes the C function pointers that ``scipy.linalg.cython_lapack`` exports (PyCapsules,
+    ``void dpotrf(char *uplo, int *n, double *a, int *lda, int *info)`` and ``void
+    dstev(char *jobz, int *n, double *d, double *e, double *z, int *ldz, double *work, int
+    *info)``) and gives their addresses to the plugin (``setCholeskyRoutine``,
+    ``setTridiagonalEigenRoutine``), which then calls them for every noise sample (Cholesky
+    factors; the Lanczos tridiagonal matrix's eigenvectors); scipy stays imported, so the
+    library stays loaded. Without scipy (or without the plugin) the
     plugin keeps its built-in routine and this returns False. Called by the first stochastic
     :class:`RPYIntegrator`, so that deterministic runs never import scipy.linalg (about
     0.3 s).
@@ -171,7 +181,9 @@ def use_lapack_cholesky() -> bool:
             except ImportError:
                 log.debug("knotmm.plugin: no scipy; the plugin's built-in Cholesky is used")
             else:
-                _rpy.setCholeskyRoutine(_capsule_address(cython_lapack.__pyx_capi__["dpotrf"]))
+                capi = cython_lapack.__pyx_capi__
+                _rpy.setCholeskyRoutine(_capsule_address(capi["dpotrf"]))
+                _rpy.setTridiagonalEigenRoutine(_capsule_address(capi["dstev"]))
                 _lapack = True
     return _lapack
 
@@ -218,6 +230,11 @@ if _rpy is not None:
             step below ``min_step`` raises ``openmm.OpenMMException`` and keeps the last state.
         threads : int
             Threads of the RPY pair loop (used from about 256 beads; same result bit for bit).
+        noise : {"cholesky", "lanczos"}
+            How stochastic methods draw ``B xi``: dense Cholesky factor, or the Lanczos
+            approximation of ``mu^(1/2) xi`` (matrix-free; for large N).
+        lanczos_tolerance : float
+            Lanczos: relative change between successive iterates at which to stop.
 
         Notes
         -----
@@ -247,6 +264,8 @@ if _rpy is not None:
             min_step: float = 1e-7,
             max_step: float = 1.0,
             threads: int = 1,
+            noise: str = "cholesky",
+            lanczos_tolerance: float = 1e-6,
         ):
             if method not in METHODS:
                 raise ValueError(
@@ -262,11 +281,14 @@ if _rpy is not None:
             self.setMinimumStepSize(min_step)
             self.setMaximumStepSize(max_step)
             self.setNumThreads(int(threads))
+            self.setNoiseMethod(noise)
+            self.setLanczosTolerance(float(lanczos_tolerance))
 
         def __repr__(self) -> str:
             return (
                 f"RPYIntegrator({self.getStepSize()}, method={self.getMethod()!r}, "
-                f"error_tolerance={self.getErrorTolerance():g}, kT={self.getThermalEnergy():g})"
+                f"error_tolerance={self.getErrorTolerance():g}, kT={self.getThermalEnergy():g}, "
+                f"noise={self.getNoiseMethod()!r})"
             )
 
 else:
@@ -279,7 +301,37 @@ else:
 
 
 
-def from_python_integrator(integrator, threads: int = 1) -> RPYIntegrator:
+def noise_settings(integrator, n_beads: int | None = None) -> tuple[str, float]:
+    """The plugin's noise method and Lanczos tolerance for one of knotmm's Brownian integrators.
+
+    Parameters
+    ----------
+    integrator : knotmm.dynamics.brownian.StochasticIntegrator
+        Its ``noise`` (a :class:`knotmm.dynamics.noise.NoiseGenerator`) decides.
+    n_beads : int, optional
+        The chain's size, which resolves ``noise = "auto"``
+        (:meth:`~knotmm.dynamics.noise.NoiseGenerator.method_for`); ``None``: ``"auto"`` is
+        taken as ``"cholesky"`` (the plugin's default).
+
+    Returns
+    -------
+    (str, float)
+        ``"cholesky"`` or ``"lanczos"``, and the tolerance. An integrator without a
+        :class:`~knotmm.dynamics.noise.NoiseGenerator` (a custom noise callable, which the
+        plugin cannot run) gives ``("cholesky", 1e-6)``.
+    """
+    noise = getattr(integrator, "noise", None)
+    method_for = getattr(noise, "method_for", None)
+    if method_for is None:
+        return "cholesky", 1e-6
+    tolerance = float(getattr(noise, "tolerance", 1e-6))
+    if n_beads is None and getattr(noise, "method", None) == "auto":
+        return "cholesky", tolerance
+    return method_for(0 if n_beads is None else int(n_beads)), tolerance
+
+
+def from_python_integrator(integrator, threads: int = 1,
+                           n_beads: int | None = None) -> RPYIntegrator:
     """The plugin integrator equivalent to one of knotmm's Python integrators.
 
     Reads the attributes the Python integrators have (``name``, ``timestep``; adaptive:
@@ -292,14 +344,18 @@ def from_python_integrator(integrator, threads: int = 1) -> RPYIntegrator:
                  knotmm.dynamics.brownian.StochasticIntegrator
     threads : int
         Threads of the plugin's pair loop.
+    n_beads : int, optional
+        The chain's size: resolves a Brownian integrator's ``noise = "auto"``
+        (:func:`noise_settings`; ``None``: Cholesky).
 
     Returns
     -------
     RPYIntegrator
         Same method, step (in tau_d = ps), tolerance (in d = nm) and step bounds; for a
-        Brownian integrator the same ``kT`` (F0 d = kJ/mol). Deterministic methods then take
-        the same steps as the Python engine; the noise stream is the plugin's own (same
-        statistics, other numbers), seeded from ``seed`` (``None``: fresh entropy).
+        Brownian integrator the same ``kT`` (F0 d = kJ/mol), noise method and Lanczos
+        tolerance. Deterministic methods then take the same steps as the Python engine; the
+        noise stream is the plugin's own (same statistics, other numbers), seeded from
+        ``seed`` (``None``: fresh entropy).
 
     Raises
     ------
@@ -323,6 +379,8 @@ def from_python_integrator(integrator, threads: int = 1) -> RPYIntegrator:
     if METHODS[name][2]:
         seed = getattr(integrator, "seed", None)
         # the plugin takes a nonzero 31-bit seed (0 means fresh entropy, as in OpenMM)
+        noise, lanczos_tolerance = noise_settings(integrator, n_beads)
         kwargs.update(kT=float(getattr(integrator, "kT", 0.0)),
-                      seed=0 if seed is None else int(seed) % 2147483646 + 1)
+                      seed=0 if seed is None else int(seed) % 2147483646 + 1,
+                      noise=noise, lanczos_tolerance=lanczos_tolerance)
     return RPYIntegrator(float(integrator.timestep), name, tolerance, **kwargs)

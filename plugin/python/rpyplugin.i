@@ -48,6 +48,51 @@ static PyObject* choleskyFactor(PyObject* matrix, bool builtin) {
     return out;
 }
 
+// mu(x)^(1/2) z by the steps' Lanczos routine (LanczosSqrt): positions (n, 3) and z (3n
+// numbers, bead-major) array_like, in d and mu0 units given by diameter and mobility (LAPACK's
+// dstev must have been handed over). Returns the tuple (y as an array of shape (n, 3),
+// iterations). For tests.
+static PyObject* lanczosSqrt(PyObject* positions, PyObject* z, double tolerance, double diameter,
+                             double mobility) {
+    PyArrayObject* px = (PyArrayObject*) PyArray_FROMANY(positions, NPY_DOUBLE, 2, 2, NPY_ARRAY_CARRAY_RO);
+    if (px == NULL)
+        return NULL;
+    PyArrayObject* pz = (PyArrayObject*) PyArray_FROMANY(z, NPY_DOUBLE, 1, 2, NPY_ARRAY_CARRAY_RO);
+    if (pz == NULL) {
+        Py_DECREF(px);
+        return NULL;
+    }
+    const npy_intp n = PyArray_DIM(px, 0);
+    if (PyArray_DIM(px, 1) != 3 || PyArray_SIZE(pz) != 3 * n) {
+        Py_DECREF(px);
+        Py_DECREF(pz);
+        PyErr_SetString(PyExc_ValueError, "positions: expected shape (n, 3); z: 3n numbers");
+        return NULL;
+    }
+    const double* x = (const double*) PyArray_DATA(px);
+    const double* zz = (const double*) PyArray_DATA(pz);
+    std::vector<double> xs(3 * n), zs(3 * n), ys(3 * n);
+    for (npy_intp b = 0; b < n; b++)
+        for (int k = 0; k < 3; k++) {
+            xs[k * n + b] = x[3 * b + k];
+            zs[k * n + b] = zz[3 * b + k];
+        }
+    Py_DECREF(px);
+    Py_DECREF(pz);
+    KnotMM::RPYMobility mob(diameter, mobility, 1);
+    KnotMM::LanczosSqrt solver;
+    const int iterations = solver.compute(mob, (int) n, xs.data(), zs.data(), tolerance, ys.data());
+    npy_intp dims[2] = {n, 3};
+    PyObject* out = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
+    if (out == NULL)
+        return NULL;
+    double* y = (double*) PyArray_DATA((PyArrayObject*) out);
+    for (npy_intp b = 0; b < n; b++)
+        for (int k = 0; k < 3; k++)
+            y[3 * b + k] = ys[k * n + b];
+    return Py_BuildValue("(Ni)", out, iterations);
+}
+
 // OpenMM's typemaps accept numpy arrays; they ask this first.
 static bool isNumpyAvailable() { return true; }
 %}
@@ -80,11 +125,15 @@ static bool isNumpyAvailable() { return true; }
 extern "C" void registerRPYKernelFactories();
 static const char* builtAgainstOpenMMVersion();
 static PyObject* choleskyFactor(PyObject* matrix, bool builtin);
+static PyObject* lanczosSqrt(PyObject* positions, PyObject* z, double tolerance, double diameter,
+                             double mobility);
 
 namespace KnotMM {
 
 void setCholeskyRoutine(unsigned long long address);
 unsigned long long getCholeskyRoutine();
+void setTridiagonalEigenRoutine(unsigned long long address);
+unsigned long long getTridiagonalEigenRoutine();
 
 class RPYIntegrator : public OpenMM::Integrator {
 public:
@@ -100,6 +149,10 @@ public:
     void setMobility(double mu0);
     double getThermalEnergy() const;
     void setThermalEnergy(double kT);
+    const std::string& getNoiseMethod() const;
+    void setNoiseMethod(const std::string& method);
+    double getLanczosTolerance() const;
+    void setLanczosTolerance(double tol);
     int getRandomNumberSeed() const;
     void setRandomNumberSeed(int seed);
     double getMinimumStepSize() const;

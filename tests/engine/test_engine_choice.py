@@ -45,7 +45,7 @@ def test_missing_plugin_asked_for_warns_once_and_falls_back(monkeypatch, caplog)
 
 
 @needs_plugin
-def test_auto_takes_the_plugin_except_lanczos_noise_and_gpus(caplog):
+def test_auto_takes_the_plugin_except_on_gpus(caplog):
     with caplog.at_level(logging.WARNING):
         assert resolve_engine("auto", "rk23") == "plugin"
         assert resolve_engine("auto", "heun", math.inf, "Reference") == "plugin"
@@ -55,8 +55,8 @@ def test_auto_takes_the_plugin_except_lanczos_noise_and_gpus(caplog):
         assert resolve_engine("auto", "ito_heun", 2.0) == "plugin"
         assert resolve_engine("auto", "leimkuhler_matthews", 2.0) == "plugin"
         assert resolve_engine("auto", "euler_maruyama", 50.0) == "plugin"
-        # ... except with Lanczos noise, which the plugin does not have
-        assert resolve_engine("auto", "ito_heun", 2.0, "CPU", "lanczos") == "python"
+        # ... with Lanczos noise too, which the plugin draws as the Python engine does
+        assert resolve_engine("auto", "ito_heun", 2.0, "CPU", "lanczos") == "plugin"
         assert resolve_engine("auto", "heun", math.inf, "CPU", "lanczos") == "plugin"
         assert resolve_engine("auto", "rk23", math.inf, "CUDA") == "python"
         assert resolve_engine("plugin", "ito_heun", 2.0) == "plugin"  # asked for: granted
@@ -65,19 +65,26 @@ def test_auto_takes_the_plugin_except_lanczos_noise_and_gpus(caplog):
         assert resolve_engine("plugin", "rk23", math.inf, "CUDA") == "python"
     assert len(caplog.records) == 1 and "CUDA" in caplog.records[0].getMessage()
     caplog.clear()
-    with caplog.at_level(logging.WARNING):  # asked for, but its noise would not be Lanczos's
-        assert resolve_engine("plugin", "ito_heun", 2.0, "CPU", "lanczos") == "python"
-    assert len(caplog.records) == 1 and "Lanczos" in caplog.records[0].getMessage()
+    with caplog.at_level(logging.WARNING):  # asked for with Lanczos noise: granted, silently
+        assert resolve_engine("plugin", "ito_heun", 2.0, "CPU", "lanczos") == "plugin"
+    assert not caplog.records
 
 
 @needs_plugin
-@pytest.mark.parametrize(("noise", "engine"), [("cholesky", "plugin"), ("lanczos", "python"),
-                                               ("auto", "plugin")])
-def test_a_runs_noise_method_decides_its_engine(noise, engine):
-    """``run.noise`` (``"auto"``: Cholesky up to 300 beads) reaches the engine choice."""
-    cfg = RunConfig.from_dict({"knot": {"beads": 40}, "run": {"peclet": 2.0, "noise": noise}})
+@pytest.mark.parametrize(("noise", "beads", "method"), [
+    ("cholesky", 40, "cholesky"), ("lanczos", 40, "lanczos"), ("auto", 40, "cholesky"),
+    ("auto", 301, "lanczos")])
+def test_a_runs_noise_method_reaches_the_plugin(noise, beads, method):
+    """``run.noise`` (``"auto"``: Cholesky up to 300 beads) and ``run.lanczos_tolerance``
+    reach the plugin integrator, which takes the run whichever the method."""
+    cfg = RunConfig.from_dict({"knot": {"beads": beads},
+                               "run": {"peclet": 2.0, "noise": noise,
+                                       "lanczos_tolerance": 1e-7}})
     sim = Simulation.from_config(cfg)
-    assert sim.engine == engine and sim.integrator.name == "leimkuhler_matthews"
+    assert sim.engine == "plugin" and sim.integrator.name == "leimkuhler_matthews"
+    sim.step(1)
+    rpy = sim._openmm_integrator
+    assert rpy.getNoiseMethod() == method and rpy.getLanczosTolerance() == 1e-7
 
 
 # -- plugin against Python --------------------------------------------------------------------

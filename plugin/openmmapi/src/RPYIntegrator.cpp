@@ -38,7 +38,7 @@ const int CHECKPOINT_VERSION = 1;
 } // namespace
 
 RPYIntegrator::RPYIntegrator(double stepSize, const std::string& method, double errorTolerance)
-    : method(method), errorTolerance(errorTolerance), beadDiameter(1.0), mobility(1.0),
+    : method(method), noiseMethod("cholesky"), lanczosTolerance(1e-6), errorTolerance(errorTolerance), beadDiameter(1.0), mobility(1.0),
       thermalEnergy(0.0), minStepSize(1e-7), maxStepSize(1.0), randomSeed(0), numThreads(1) {
     bool known = false;
     for (const char* m : METHODS)
@@ -84,6 +84,17 @@ void RPYIntegrator::setThermalEnergy(double kT) {
         throw OpenMMException("thermalEnergy=" + fmt(kT) + ": method '" + method +
                               "' is deterministic; use euler_maruyama, ito_heun or leimkuhler_matthews for kT > 0");
     thermalEnergy = kT;
+}
+
+void RPYIntegrator::setNoiseMethod(const std::string& name) {
+    if (name != "cholesky" && name != "lanczos")
+        throw OpenMMException("noiseMethod='" + name + "': expected 'cholesky' or 'lanczos'");
+    noiseMethod = name;
+}
+
+void RPYIntegrator::setLanczosTolerance(double tol) {
+    requirePositive(tol, "lanczosTolerance", " (relative change between Lanczos iterates)");
+    lanczosTolerance = tol;
 }
 
 void RPYIntegrator::setRandomNumberSeed(int seed) {

@@ -31,6 +31,8 @@ public:
         node.setDoubleProperty("minimumStepSize", integ.getMinimumStepSize());
         node.setDoubleProperty("maximumStepSize", integ.getMaximumStepSize());
         node.setIntProperty("numThreads", integ.getNumThreads());
+        node.setStringProperty("noiseMethod", integ.getNoiseMethod());
+        node.setDoubleProperty("lanczosTolerance", integ.getLanczosTolerance());
         node.setIntProperty("integrationForceGroups", integ.getIntegrationForceGroups());
         SerializationNode& start = node.createChildNode("SpectralRadiusStartVector");
         for (const Vec3& v : integ.getSpectralRadiusStartVector())
@@ -51,6 +53,8 @@ public:
             integ->setMinimumStepSize(node.getDoubleProperty("minimumStepSize"));
             integ->setMaximumStepSize(node.getDoubleProperty("maximumStepSize"));
             integ->setNumThreads(node.getIntProperty("numThreads"));
+            integ->setNoiseMethod(node.getStringProperty("noiseMethod", "cholesky"));
+            integ->setLanczosTolerance(node.getDoubleProperty("lanczosTolerance", 1e-6));
             integ->setIntegrationForceGroups(node.getIntProperty("integrationForceGroups"));
             std::vector<Vec3> start;
             for (const SerializationNode& child : node.getChildNode("SpectralRadiusStartVector").getChildren())

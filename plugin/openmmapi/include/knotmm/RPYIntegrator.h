@@ -43,6 +43,18 @@ public:
     /** Thermal energy kT in kJ/mol (= F0 d); 0 is deterministic. */
     double getThermalEnergy() const { return thermalEnergy; }
     void setThermalEnergy(double kT);
+    /**
+     * How stochastic methods draw the noise B xi (B B^T = mu): "cholesky" (the default; the
+     * lower Cholesky factor of the dense 3n x 3n mobility, O(n^3)) or "lanczos" (the Krylov
+     * approximation of mu^(1/2) xi from matrix-free products with the RPY pair loop,
+     * O(k n^2) for k iterations; knotmm.dynamics.noise.lanczos_sqrt). Both draw 3n normals
+     * per sample. A setting read at every step (not part of checkpoints).
+     */
+    const std::string& getNoiseMethod() const { return noiseMethod; }
+    void setNoiseMethod(const std::string& method);
+    /** Lanczos: relative change between successive iterates at which to stop (default 1e-6). */
+    double getLanczosTolerance() const { return lanczosTolerance; }
+    void setLanczosTolerance(double tol);
     int getRandomNumberSeed() const { return randomSeed; }
     void setRandomNumberSeed(int seed);
     double getMinimumStepSize() const { return minStepSize; }
@@ -93,7 +105,8 @@ protected:
 private:
     void checkInitialized() const;
     void takeStep(double targetTime);
-    std::string method;
+    std::string method, noiseMethod;
+    double lanczosTolerance;
     double errorTolerance, beadDiameter, mobility, thermalEnergy, minStepSize, maxStepSize;
     int randomSeed, numThreads;
     std::vector<OpenMM::Vec3> rkcStart;

@@ -61,6 +61,49 @@ unsigned long long getCholeskyRoutine();
 /** out = scale * L xi for a lower-triangular row-major n x n L (upper triangle ignored). */
 void lowerTimes(const std::vector<double>& lower, int n, const double* xi, double scale, double* out);
 
+/**
+ * Eigen-decomposition of the symmetric tridiagonal k x k matrix with diagonal `diag` (k numbers)
+ * and off-diagonal `off` (k - 1 numbers): eigenvalues into `values` (k), eigenvectors as the
+ * columns of the column-major `vectors` (k x k), by LAPACK's dstev, set with
+ * setTridiagonalEigenRoutine (OpenMM::OpenMMException if none was). False if the iteration
+ * failed.
+ */
+bool tridiagonalEigen(const std::vector<double>& diag, const std::vector<double>& off, int k,
+                      std::vector<double>& values, std::vector<double>& vectors);
+
+/**
+ * Use LAPACK's dstev at `address` for tridiagonalEigen: `void dstev(char* jobz, int* n,
+ * double* d, double* e, double* z, int* ldz, double* work, int* info)`, as
+ * scipy.linalg.cython_lapack exports it. 0 goes back to the built-in routine. Process-wide.
+ */
+void setTridiagonalEigenRoutine(unsigned long long address);
+/** The dstev address in use, or 0 for the built-in routine. */
+unsigned long long getTridiagonalEigenRoutine();
+
+/** Default iteration limit of LanczosSqrt (knotmm.dynamics.noise.LANCZOS_MAX_ITER). */
+const int LANCZOS_MAX_ITER = 200;
+
+/**
+ * Krylov approximation of mu^(1/2) z, matrix-free (knotmm.dynamics.noise.lanczos_sqrt):
+ * Lanczos with full reorthogonalisation (classical Gram-Schmidt, twice) builds V_k and the
+ * tridiagonal T_k = V_k^T mu V_k; the iterate is y_k = |z| V_k T_k^(1/2) e_1, T_k^(1/2) from
+ * its eigen-decomposition (tridiagonalEigen). It stops when |y_k - y_(k-1)| <= tolerance |y_k|,
+ * or when the Krylov space is invariant (beta_k <= 1e-13 max|alpha|, or k = 3n): then y_k is
+ * exact up to rounding. The workspace is kept between calls.
+ */
+class LanczosSqrt {
+public:
+    /**
+     * out = mu(x)^(1/2) z (SoA arrays of 3n numbers, as RPYMobility). Returns the iterations
+     * (matrix-vector products) used; throws OpenMM::OpenMMException if min(maxIter, 3n)
+     * iterations do not reach the tolerance, or the eigen-decomposition fails.
+     */
+    int compute(const RPYMobility& mobility, int n, const double* x, const double* z, double tolerance,
+                double* out, int maxIter = LANCZOS_MAX_ITER);
+private:
+    std::vector<double> basis, alpha, beta, w, proj, values, vectors, coeff, coeffOld;
+};
+
 } // namespace KnotMM
 
 #endif

@@ -74,6 +74,9 @@ private:
     int numThreads = 1;
     RPYMobility mobility;
     NoiseStream noise;
+    bool lanczos = false;          // the integrator's noise method (read at every step)
+    double lanczosTolerance = 1e-6;
+    LanczosSqrt lanczosSqrt;
     std::vector<OpenMM::Vec3> rkcStart;
 
     // state carried from step to step (all of it is checkpointed)
@@ -93,7 +96,7 @@ private:
     Vec kick, kickPositions;
 
     // scratch
-    Vec xs, fs, vs, k2, k3, k4, y1, ytmp, err, w, xi, mat;
+    Vec xs, fs, vs, zs, k2, k3, k4, y1, ytmp, err, w, xi, mat;
     std::vector<Vec> stage;
     std::map<int, Chebyshev> chebyshevCache;
 };

@@ -162,7 +162,9 @@ void ReferenceIntegrateRPYStepKernel::initialize(const System& system, const RPY
     int seed = integrator.getRandomNumberSeed();
     noise.seed(seed != 0 ? (uint64_t) (uint32_t) seed : (uint64_t) std::random_device()() << 32 ^ std::random_device()());
     rkcStart = integrator.getSpectralRadiusStartVector();
-    for (Vec* v : {&y, &k1, &k2, &k3, &k4, &y1, &ytmp, &err, &w, &xi, &xs, &fs, &vs})
+    lanczos = integrator.getNoiseMethod() == "lanczos";
+    lanczosTolerance = integrator.getLanczosTolerance();
+    for (Vec* v : {&y, &k1, &k2, &k3, &k4, &y1, &ytmp, &err, &w, &xi, &xs, &fs, &vs, &zs})
         v->assign(3 * n, 0.0);
 }
 
@@ -259,10 +261,24 @@ void ReferenceIntegrateRPYStepKernel::noiseSample(const Vec& yy, double scale, V
         std::fill(out.begin(), out.end(), 0.0);
         return;
     }
-    // out = scale L xi with L L^T = mu (exact: dense Cholesky of the 3n x 3n mobility)
+    // out = scale B xi with B B^T = mu: 3n normals (bead-major) whichever the method
     for (int b = 0; b < n; b++)
         for (int k = 0; k < 3; k++)
             xs[k * n + b] = yy[3 * b + k];
+    if (lanczos) {
+        // B xi = mu^(1/2) xi by Lanczos, matrix-free (the pair loop of the velocities)
+        for (int i = 0; i < 3 * n; i++)
+            xi[i] = noise.normal();
+        for (int b = 0; b < n; b++)
+            for (int k = 0; k < 3; k++)
+                zs[k * n + b] = xi[3 * b + k];
+        lanczosSqrt.compute(mobility, n, xs.data(), zs.data(), lanczosTolerance, vs.data());
+        for (int b = 0; b < n; b++)
+            for (int k = 0; k < 3; k++)
+                out[3 * b + k] = scale * vs[k * n + b];
+        return;
+    }
+    // exact: dense Cholesky of the 3n x 3n mobility
     mobility.lowerMatrix(n, xs.data(), mat);
     const int dim = 3 * n;
     if (!choleskyLower(mat, dim))
@@ -285,6 +301,8 @@ void ReferenceIntegrateRPYStepKernel::keepK1(ContextImpl& context, const Vec& at
 double ReferenceIntegrateRPYStepKernel::execute(ContextImpl& context, RPYIntegrator& integrator, double targetTime) {
     // settings that may change between steps
     kT = integrator.getThermalEnergy();
+    lanczos = integrator.getNoiseMethod() == "lanczos";
+    lanczosTolerance = integrator.getLanczosTolerance();
     if (integrator.getNumThreads() != numThreads) {
         numThreads = integrator.getNumThreads();
         mobility = RPYMobility(integrator.getBeadDiameter(), integrator.getMobility(), numThreads);
