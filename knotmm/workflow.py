@@ -163,7 +163,8 @@ def run(
         At the end, wait for the knot checks still under way even while the knot worker is
         starting (topoly's import, seconds). By default they are waited for only once it is
         up, and otherwise recorded as not made (``knot_type_checks_dropped``, a note for the
-        template), so that a short run does not wait for topoly.
+        template), so that a short run does not wait for topoly; a run with
+        ``run.on_topology_change = "stop"`` always waits.
 
     Returns
     -------
@@ -416,7 +417,10 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
                 # a resumed run first makes any report due at its start (a fault while
                 # writing a frame leaves it due)
                 sim.run(duration - sim.time, write_at_start=True)
-            finish_checks(judge, watch, wait_for_checks)  # still running beside the run
+            # checks still running beside the run; a run asked to stop at a change
+            # waits for every one of them
+            finish_checks(judge, watch,
+                          wait_for_checks or cfg["run.on_topology_change"] == "stop")
             status, message = STATUS_FINISHED, None
         except SimulationFault as exc:
             status, message = STATUS_FAULT, str(exc)

@@ -114,3 +114,16 @@ def test_the_knot_watch_does_not_wait_for_a_worker_still_starting():
     watch.finish()  # returns at once
     watch.close()
     assert (watch.checks, watch.dropped) == (0, 1)
+
+
+def test_a_run_asked_to_stop_at_a_change_waits_for_its_checks(monkeypatch, tmp_path):
+    import knotmm.engine.knot_checks
+    from knotmm.workflow import run
+
+    handle = _Handle("+3_1")
+    _deferred(monkeypatch, handle)
+    monkeypatch.setattr(knotmm.engine.knot_checks, "worker_ready", lambda: False)
+    cfg = RunConfig.from_dict({**CFG, "run": {**CFG["run"], "on_topology_change": "stop"}})
+    run(cfg, tmp_path / "r", progress=False)
+    assert handle.waited  # not dropped: the user asked for the checks to be enforced
+    assert read_toml(tmp_path / "r" / "run.toml")["knotmm"]["template_knot_type"] == "+3_1"
