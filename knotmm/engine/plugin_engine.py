@@ -51,6 +51,9 @@ class PluginEngine:
         ``n_rejected``) and next step (``timestep``, adaptive methods) follow the plugin's.
     threads : int
         Threads of the plugin's RPY pair loop (same trajectory).
+    n_beads : int, optional
+        The chain's size, which resolves a Brownian run's ``run.noise = "auto"``
+        (:func:`knotmm.plugin.noise_settings`).
 
     Attributes
     ----------
@@ -58,29 +61,12 @@ class PluginEngine:
         The OpenMM integrator the Simulation's Context is created with.
     """
 
-    def __init__(self, integrator, threads: int = 1):
+    def __init__(self, integrator, threads: int = 1, n_beads: int | None = None):
         from knotmm.plugin import from_python_integrator
 
         self.mirror = integrator
-        self.rpy = from_python_integrator(integrator, threads=threads)
+        self.rpy = from_python_integrator(integrator, threads=threads, n_beads=n_beads)
         self.adaptive = bool(getattr(integrator, "adaptive", False))
-        self._noise_resolved = False
-
-    def _resolve_noise(self, sim) -> None:
-        """Set the plugin's noise method for ``sim``'s chain size, once.
-
-        ``run.noise = "auto"`` depends on the bead count
-        (:meth:`knotmm.dynamics.noise.NoiseGenerator.method_for`), which the Simulation
-        knows only after it made this engine; the method is a setting the plugin reads at
-        every step, so setting it before the first step is enough.
-        """
-        if not self._noise_resolved:
-            from knotmm.plugin import noise_settings
-
-            method, tolerance = noise_settings(self.mirror, sim.n_beads)
-            self.rpy.setNoiseMethod(method)
-            self.rpy.setLanczosTolerance(tolerance)
-            self._noise_resolved = True
 
     def stiffness(self, sim, rkc2) -> float:
         """The plugin rkc2's spectral-radius estimate at ``sim``'s positions, in 1/tau_d.
@@ -93,12 +79,9 @@ class PluginEngine:
 
         probe = from_python_integrator(rkc2, threads=self.rpy.getNumThreads())
         context = openmm.Context(sim.system, probe, sim.context.getPlatform())
-        try:
-            context.setPositions(sim.context.getState(getPositions=True).getPositions())
-            probe.step(1)
-            return float(probe.getSpectralRadius())
-        finally:
-            del context
+        context.setPositions(sim.context.getState(getPositions=True).getPositions())
+        probe.step(1)
+        return float(probe.getSpectralRadius())
 
     # -- reading the Context ------------------------------------------------------------
     def _counts(self) -> tuple[int, int, int]:
@@ -141,7 +124,6 @@ class PluginEngine:
             stretch); ``sim`` then holds the last good state.
         """
         sim._sync_context()  # reporters may have moved the Context's positions
-        self._resolve_noise(sim)
         start = sim.context.createCheckpoint()
         before = self._counts()
         try:
@@ -169,7 +151,6 @@ class PluginEngine:
             The step taken, in tau_d.
         """
         sim._sync_context()  # reporters may have moved the Context's positions
-        self._resolve_noise(sim)
         remaining = target - sim.time
         before = self._counts()
         h = self._step_size()

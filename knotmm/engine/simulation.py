@@ -143,7 +143,8 @@ class Simulation:
         if engine == PLUGIN:
             from knotmm.engine.plugin_engine import PluginEngine
 
-            self._plugin = PluginEngine(self.integrator, threads=self.mobility_threads)
+            self._plugin = PluginEngine(self.integrator, threads=self.mobility_threads,
+                                        n_beads=pos.shape[0])
             self._openmm_integrator = self._plugin.rpy
         else:
             # The OpenMM integrator is never stepped: knotmm integrates. It holds the step
@@ -196,12 +197,8 @@ class Simulation:
         if engine is None:
             platform, _ = select_platform(cfg["run.platform"], np.shape(positions)[0],
                                           cfg["run.threads"])
-            noise = getattr(integrator, "noise", None)  # Brownian: a NoiseGenerator
-            method_for = getattr(noise, "method_for", None)
-            engine = resolve_engine(
-                cfg["run.engine"], integrator.name, cfg["run.peclet"], platform.getName(),
-                noise_method=method_for(np.shape(positions)[0]) if method_for else "cholesky",
-            )
+            engine = resolve_engine(cfg["run.engine"], integrator.name, cfg["run.peclet"],
+                                    platform.getName())
         return cls(
             positions,
             ChainModel.from_config(cfg),

@@ -44,8 +44,8 @@ RPY pair loop of the velocities; both draw 3N normals per sample. The first stoc
 (:func:`use_lapack_cholesky`: the C function pointers of ``scipy.linalg.cython_lapack``, the
 way numba's ``np.linalg.cholesky`` finds LAPACK; no link step, no new dependency); ``dpotrf``
 is 2-3x faster than the plugin's built-in unblocked routine at N = 90. Without scipy, or for
-the plugin used from C++, the built-in routines (Cholesky-Crout; implicit QL for the
-tridiagonal matrix) take their place (same results to rounding). Deterministic runs never
+the plugin used from C++, the built-in Cholesky-Crout takes its place (same results to
+rounding), and Lanczos noise is refused (no ``dstev``). Deterministic runs never
 import scipy. The factorisation runs on as many threads as the BLAS library is allowed
 (``threadpoolctl``; :class:`knotmm.engine.simulation.Simulation` allows one).
 """
@@ -167,10 +167,10 @@ def use_lapack_cholesky() -> bool:
     *info)``) and gives their addresses to the plugin (``setCholeskyRoutine``,
     ``setTridiagonalEigenRoutine``), which then calls them for every noise sample (Cholesky
     factors; the Lanczos tridiagonal matrix's eigenvectors); scipy stays imported, so the
-    library stays loaded. Without scipy (or without the plugin) the
-    plugin keeps its built-in routine and this returns False. Called by the first stochastic
-    :class:`RPYIntegrator`, so that deterministic runs never import scipy.linalg (about
-    0.3 s).
+    library stays loaded. Without scipy (or without the plugin) the plugin keeps its
+    built-in Cholesky, cannot draw Lanczos noise, and this returns False. Called by the first
+    stochastic :class:`RPYIntegrator`, so that deterministic runs never import scipy.linalg
+    (about 0.3 s).
     """
     global _lapack
     if _lapack is None:
@@ -321,13 +321,13 @@ def noise_settings(integrator, n_beads: int | None = None) -> tuple[str, float]:
         plugin cannot run) gives ``("cholesky", 1e-6)``.
     """
     noise = getattr(integrator, "noise", None)
-    method_for = getattr(noise, "method_for", None)
-    if method_for is None:
+    if not hasattr(noise, "method_for"):
         return "cholesky", 1e-6
-    tolerance = float(getattr(noise, "tolerance", 1e-6))
-    if n_beads is None and getattr(noise, "method", None) == "auto":
-        return "cholesky", tolerance
-    return method_for(0 if n_beads is None else int(n_beads)), tolerance
+    if n_beads is None:
+        method = "cholesky" if noise.method == "auto" else noise.method
+    else:
+        method = noise.method_for(int(n_beads))
+    return method, float(noise.tolerance)
 
 
 def from_python_integrator(integrator, threads: int = 1,

@@ -40,8 +40,8 @@ private:
 
 /**
  * In-place lower Cholesky factor of an SPD matrix (row-major n x n; only the lower triangle
- * is read, the upper one is zeroed); false if not SPD. The one place that decides how: LAPACK's dpotrf when a routine
- * was set with setCholeskyRoutine, else choleskyLowerBuiltin.
+ * is read, the upper one is zeroed); false if not SPD. The one place that decides how:
+ * LAPACK's dpotrf when a routine was set with setCholeskyRoutine, else choleskyLowerBuiltin.
  */
 bool choleskyLower(std::vector<double>& a, int n);
 
@@ -74,10 +74,10 @@ bool tridiagonalEigen(const std::vector<double>& diag, const std::vector<double>
 /**
  * Use LAPACK's dstev at `address` for tridiagonalEigen: `void dstev(char* jobz, int* n,
  * double* d, double* e, double* z, int* ldz, double* work, int* info)`, as
- * scipy.linalg.cython_lapack exports it. 0 goes back to the built-in routine. Process-wide.
+ * scipy.linalg.cython_lapack exports it. 0: none (Lanczos noise is then refused). Process-wide.
  */
 void setTridiagonalEigenRoutine(unsigned long long address);
-/** The dstev address in use, or 0 for the built-in routine. */
+/** The dstev address in use, or 0 for none. */
 unsigned long long getTridiagonalEigenRoutine();
 
 /** Default iteration limit of LanczosSqrt (knotmm.dynamics.noise.LANCZOS_MAX_ITER). */
