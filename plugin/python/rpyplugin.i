@@ -11,6 +11,8 @@
 #include "openmm/RPMDIntegrator.h"
 #include "openmm/RPMDMonteCarloBarostat.h"
 #include "knotmm/RPYIntegrator.h"
+#include "knotmm/RPYMethods.h"
+#include "knotmm/RPYStepFault.h"
 #include "RPYMobility.h"
 using OpenMM::Vec3;  // OpenMM's typemaps name it unqualified
 
@@ -93,6 +95,44 @@ static PyObject* lanczosSqrt(PyObject* positions, PyObject* z, double tolerance,
     return Py_BuildValue("(Ni)", out, iterations);
 }
 
+// The method table (RPYMethods.h) as a tuple of (name, order, adaptive, stochastic).
+static PyObject* methodTable() {
+    const std::vector<KnotMM::RPYMethodInfo>& table = KnotMM::rpyMethodTable();
+    PyObject* out = PyTuple_New((Py_ssize_t) table.size());
+    for (size_t i = 0; i < table.size(); i++)
+        PyTuple_SET_ITEM(out, (Py_ssize_t) i,
+                         Py_BuildValue("(siNN)", table[i].name, table[i].order, PyBool_FromLong(table[i].adaptive),
+                                       PyBool_FromLong(table[i].stochastic)));
+    return out;
+}
+
+static double landingSlack(double target) { return KnotMM::landingSlack(target); }
+
+// Raise knotmm.plugin.rpyplugin.StepFault (defined in this module's Python part) for a fault;
+// falls back to openmm.OpenMMException if that class cannot be found.
+static void raiseStepFault(const KnotMM::RPYStepFault& fault) {
+    PyObject* module = PyImport_ImportModule("knotmm.plugin.rpyplugin");
+    PyObject* type = module ? PyObject_GetAttrString(module, "StepFault") : NULL;
+    PyObject* value = type ? PyObject_CallFunction(type, "sssdid", fault.what(), fault.kindName(),
+                                                   fault.method().c_str(), fault.time(), fault.bead(),
+                                                   fault.errorEstimate()) : NULL;
+    if (value != NULL) {
+        PyErr_SetObject(type, value);
+        Py_DECREF(value);
+    }
+    else {
+        PyErr_Clear();
+        PyObject* openmm = PyImport_ImportModule("openmm");
+        PyObject* base = openmm ? PyObject_GetAttrString(openmm, "OpenMMException") : NULL;
+        PyErr_Clear();
+        PyErr_SetString(base ? base : PyExc_RuntimeError, fault.what());
+        Py_XDECREF(base);
+        Py_XDECREF(openmm);
+    }
+    Py_XDECREF(type);
+    Py_XDECREF(module);
+}
+
 // OpenMM's typemaps accept numpy arrays; they ask this first.
 static bool isNumpyAvailable() { return true; }
 %}
@@ -105,10 +145,14 @@ static bool isNumpyAvailable() { return true; }
 %include "swig/typemaps.i"
 %include <std_string.i>
 
-// C++ exceptions become openmm.OpenMMException, as in OpenMM's own module.
+// A failed step becomes knotmm.plugin.rpyplugin.StepFault (an openmm.OpenMMException with the
+// fault's fields); other C++ exceptions become openmm.OpenMMException, as in OpenMM's module.
 %exception {
     try {
         $action
+    } catch (KnotMM::RPYStepFault& fault) {
+        raiseStepFault(fault);
+        SWIG_fail;
     } catch (std::exception& e) {
         PyObject* module = PyImport_ImportModule("openmm");
         PyObject* type = module ? PyObject_GetAttrString(module, "OpenMMException") : NULL;
@@ -122,8 +166,47 @@ static bool isNumpyAvailable() { return true; }
 
 %feature("autodoc", "0");
 
+%pythoncode %{
+import openmm as _openmm_module
+
+
+class StepFault(_openmm_module.OpenMMException):
+    """A step of :class:`RPYIntegrator` failed; the Context keeps the last good state.
+
+    Attributes
+    ----------
+    kind : str
+        ``"non_finite"`` (positions became NaN or infinite), ``"step_underflow"`` (error
+        control wanted a step below the minimum step size), ``"not_positive_definite"`` (the
+        mobility could not be factorised for the noise) or ``"lanczos_not_converged"``.
+    method : str
+        The integration method.
+    time : float
+        Time of the last good state, in ps (= tau_d).
+    bead : int
+        The bead concerned (``non_finite``: the first non-finite one), or -1.
+    error_estimate : float
+        ``step_underflow``: the error estimate over the tolerance; else nan.
+    """
+
+    def __init__(self, message, kind="", method="", time=float("nan"), bead=-1,
+                 error_estimate=float("nan")):
+        super().__init__(message)
+        self.kind = kind
+        self.method = method
+        self.time = time
+        self.bead = bead
+        self.error_estimate = error_estimate
+
+    def __reduce__(self):
+        return (type(self), (str(self), self.kind, self.method, self.time, self.bead,
+                             self.error_estimate))
+%}
+
 extern "C" void registerRPYKernelFactories();
 static const char* builtAgainstOpenMMVersion();
+static PyObject* methodTable();
+static double landingSlack(double target);
 static PyObject* choleskyFactor(PyObject* matrix, bool builtin);
 static PyObject* lanczosSqrt(PyObject* positions, PyObject* z, double tolerance, double diameter,
                              double mobility);
@@ -194,6 +277,60 @@ public:
     long long getNumRejectedSteps() const;
     int getLastStages() const;
     double getSpectralRadius() const;
+%extend {
+    // As OpenMM's plugins: the RPYIntegrator behind a base-class reference (what
+    // XmlSerializer and CompoundIntegrator hand back), and whether there is one.
+    static KnotMM::RPYIntegrator& cast(OpenMM::Integrator& integrator) {
+        return dynamic_cast<KnotMM::RPYIntegrator&>(integrator);
+    }
+    static bool isinstance(OpenMM::Integrator& integrator) {
+        return dynamic_cast<KnotMM::RPYIntegrator*>(&integrator) != NULL;
+    }
+}
 };
 
 }
+
+%pythoncode %{
+#: The Python class that casts give: ``knotmm.plugin`` sets it to its own subclass of
+#: :class:`RPYIntegrator` (same C++ object, keyword arguments and a short repr).
+cast_class = None
+
+
+def _as_rpy(integrator):
+    """``integrator`` as an :class:`RPYIntegrator` when it is one in C++, taking over ownership."""
+    if isinstance(integrator, RPYIntegrator) or not isinstance(integrator, _openmm_module.Integrator):
+        return integrator
+    if not RPYIntegrator.isinstance(integrator):
+        return integrator
+    cast = RPYIntegrator.cast(integrator)
+    if cast_class is not None:
+        cast.__class__ = cast_class
+    if integrator.thisown:  # the new proxy owns the C++ object; the old one no longer does
+        integrator.thisown = False
+        cast.thisown = True
+    return cast
+
+
+def _install_casts():
+    """Make ``openmm.XmlSerializer.deserialize`` and ``clone`` give back RPYIntegrators.
+
+    OpenMM's own module casts the integrators it knows; a plugin's class is cast here, once,
+    when this module is imported (``knotmm.plugin`` imports it).
+    """
+    serializer = _openmm_module.XmlSerializer
+    for name in ("_deserializeIntegrator", "_cloneIntegrator"):
+        original = getattr(serializer, name, None)
+        if original is None or getattr(original, "_knotmm_cast", False):
+            continue
+
+        def wrapped(arg, _original=original):
+            return _as_rpy(_original(arg))
+
+        wrapped._knotmm_cast = True
+        wrapped.__doc__ = original.__doc__
+        setattr(serializer, name, staticmethod(wrapped))
+
+
+_install_casts()
+%}

@@ -1,5 +1,6 @@
 #include "knotmm/RPYIntegrator.h"
 #include "knotmm/RPYKernels.h"
+#include "knotmm/RPYMethods.h"
 
 #include "openmm/Context.h"
 #include "openmm/OpenMMException.h"
@@ -16,9 +17,6 @@ using namespace OpenMM;
 using namespace KnotMM;
 
 namespace {
-
-const char* const METHODS[] = {"euler", "heun", "midpoint", "rk23", "rkc2",
-                               "euler_maruyama", "ito_heun", "leimkuhler_matthews"};
 
 std::string fmt(double x) {
     std::ostringstream s;
@@ -40,23 +38,26 @@ const int CHECKPOINT_VERSION = 1;
 RPYIntegrator::RPYIntegrator(double stepSize, const std::string& method, double errorTolerance)
     : method(method), noiseMethod("cholesky"), lanczosTolerance(1e-6), errorTolerance(errorTolerance), beadDiameter(1.0), mobility(1.0),
       thermalEnergy(0.0), minStepSize(1e-7), maxStepSize(1.0), randomSeed(0), numThreads(1) {
-    bool known = false;
-    for (const char* m : METHODS)
-        known = known || method == m;
-    if (!known)
-        throw OpenMMException("method='" + method + "': expected one of euler, heun, midpoint, "
-                              "rk23, rkc2, euler_maruyama, ito_heun, leimkuhler_matthews");
+    rpyMethodInfo(method);  // throws for an unknown name
     requirePositive(stepSize, "stepSize", " (in ps = tau_d)");
     requirePositive(errorTolerance, "errorTolerance", " (in nm = d)");
     setStepSize(stepSize);
     setConstraintTolerance(1e-5);
 }
 
-bool RPYIntegrator::isAdaptive() const { return method == "rk23" || method == "rkc2"; }
+bool RPYIntegrator::isAdaptive() const { return rpyMethodInfo(method).adaptive; }
 
-bool RPYIntegrator::isStochastic() const {
-    return method == "euler_maruyama" || method == "ito_heun" || method == "leimkuhler_matthews";
+bool RPYIntegrator::isStochastic() const { return rpyMethodInfo(method).stochastic; }
+
+namespace {
+std::string stochasticNames() {
+    std::string names;
+    for (const RPYMethodInfo& m : rpyMethodTable())
+        if (m.stochastic)
+            names += (names.empty() ? "" : ", ") + std::string(m.name);
+    return names;
 }
+} // namespace
 
 void RPYIntegrator::setErrorTolerance(double tol) {
     requirePositive(tol, "errorTolerance", " (in nm = d)");
@@ -82,7 +83,7 @@ void RPYIntegrator::setThermalEnergy(double kT) {
         throw OpenMMException("thermalEnergy=" + fmt(kT) + ": must be >= 0 (kT in kJ/mol = F0 d; 0 is deterministic)");
     if (kT > 0 && !isStochastic())
         throw OpenMMException("thermalEnergy=" + fmt(kT) + ": method '" + method +
-                              "' is deterministic; use euler_maruyama, ito_heun or leimkuhler_matthews for kT > 0");
+                              "' is deterministic; use one of " + stochasticNames() + " for kT > 0");
     thermalEnergy = kT;
 }
 
@@ -140,7 +141,7 @@ void RPYIntegrator::initialize(ContextImpl& contextRef) {
                                   std::to_string(beads) + ")");
     }
     if (thermalEnergy > 0 && !isStochastic())
-        throw OpenMMException("thermalEnergy > 0 needs euler_maruyama, ito_heun or leimkuhler_matthews, not " + method);
+        throw OpenMMException("thermalEnergy > 0 needs one of " + stochasticNames() + ", not " + method);
     if (isAdaptive())  // as knotmm's adaptive integrators: never start above the largest step
         setStepSize(std::min(getStepSize(), maxStepSize));
     context = &contextRef;
@@ -179,8 +180,14 @@ void RPYIntegrator::step(int steps) {
 
 void RPYIntegrator::stepTo(double time) {
     checkInitialized();
-    // The same landing rule as knotmm.simulation: a time within 1e-9 (relative) counts as reached.
-    const double slack = 1e-9 * std::max(1.0, std::fabs(time));
+    const double now = context->getTime();
+    if (!std::isfinite(time))
+        throw OpenMMException("stepTo: time=" + fmt(time) + " is not a finite number of ps");
+    // the landing rule (RPYMethods.h): a time within the slack counts as reached
+    const double slack = landingSlack(time);
+    if (time < now - slack)
+        throw OpenMMException("stepTo: time=" + fmt(time) + " ps is earlier than the Context's time " +
+                              fmt(now) + " ps; overdamped steps only go forward");
     while (context->getTime() < time - slack)
         takeStep(time);
 }

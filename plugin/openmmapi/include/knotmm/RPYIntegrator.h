@@ -5,8 +5,10 @@
 // mobility:  dr_i/dt = sum_j mu_ij F_j  (+ sqrt(2 kT) B dW with B B^T = mu when kT > 0).
 //
 // Units are OpenMM's read as knotmm's model units: 1 nm = 1 bead diameter d, 1 kJ/mol =
-// F0 d, 1 ps = tau_d. The formulas of every method are those of knotmm.integrators and
-// knotmm.brownian (the Python reference engine); see plugin/README.md.
+// F0 d, 1 ps = tau_d. The formulas of every method are those of knotmm.dynamics.deterministic
+// and knotmm.dynamics.brownian (the Python reference engine); the methods are listed in
+// RPYMethods.h, their formulas live in plugin/stepper/, and each platform implements a small
+// backend (plugin/stepper/include/knotmm/stepper/Backend.h). See plugin/README.md.
 
 #include "openmm/Integrator.h"
 #include "openmm/Kernel.h"
@@ -21,17 +23,18 @@ class RPYIntegrator : public OpenMM::Integrator {
 public:
     /**
      * @param stepSize     first (adaptive) or fixed step, in ps (= tau_d)
-     * @param method       "euler", "heun", "midpoint", "rk23", "rkc2", "euler_maruyama",
-     *                     "ito_heun" or "leimkuhler_matthews"
+     * @param method       a name of the method table (RPYMethods.h): "euler", "heun",
+     *                     "midpoint", "rk23", "rkc2", "euler_maruyama", "ito_heun" or
+     *                     "leimkuhler_matthews"
      * @param errorTolerance  largest per-bead displacement error per step (adaptive), in nm
      */
     explicit RPYIntegrator(double stepSize, const std::string& method = "rk23",
                            double errorTolerance = 1e-4);
 
     const std::string& getMethod() const { return method; }
-    /** True for rk23 and rkc2 (the step size follows error control). */
+    /** The step size follows error control (rk23, rkc2; RPYMethodInfo::adaptive). */
     bool isAdaptive() const;
-    /** True for euler_maruyama, ito_heun and leimkuhler_matthews (noise when kT > 0). */
+    /** Noise when kT > 0 (euler_maruyama, ito_heun, leimkuhler_matthews; RPYMethodInfo::stochastic). */
     bool isStochastic() const;
 
     double getErrorTolerance() const { return errorTolerance; }
@@ -71,9 +74,16 @@ public:
     void setSpectralRadiusStartVector(const std::vector<OpenMM::Vec3>& v);
     const std::vector<OpenMM::Vec3>& getSpectralRadiusStartVector() const { return rkcStart; }
 
-    /** Take `steps` accepted steps (fixed methods: of getStepSize()). */
+    /**
+     * Take `steps` accepted steps (fixed methods: of getStepSize()). A step that fails throws
+     * RPYStepFault (RPYStepFault.h) and leaves the Context at the last good state.
+     */
     void step(int steps) override;
-    /** Advance to `time` (ps) exactly: steps are never longer than what is left. */
+    /**
+     * Advance to `time` (ps) exactly: steps are never longer than what is left, and a time
+     * within landingSlack(time) counts as reached. A time that is not finite, or earlier than
+     * the Context's by more than the slack, throws OpenMMException.
+     */
     void stepTo(double time);
 
     /**

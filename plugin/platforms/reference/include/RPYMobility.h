@@ -45,6 +45,13 @@ private:
  */
 bool choleskyLower(std::vector<double>& a, int n);
 
+/**
+ * True if `s` is a number > 0 (false for NaN). Defined in a file compiled with strict IEEE
+ * arithmetic (RPYStrict.cpp), so that the fast-math pair-loop file can call it: there the
+ * compiler assumes finite math and would let a NaN pass a plain `s > 0` test.
+ */
+bool positivePivot(double s);
+
 /** The built-in unblocked Cholesky-Crout (no LAPACK): same contract as choleskyLower. */
 bool choleskyLowerBuiltin(std::vector<double>& a, int n);
 

@@ -5,6 +5,7 @@
 
 #include "RPYMobility.h"
 
+#include "knotmm/RPYStepFault.h"
 #include "openmm/OpenMMException.h"
 
 #include <algorithm>
@@ -158,7 +159,7 @@ int LanczosSqrt::compute(const RPYMobility& mobility, int n, const double* x, co
         msg << "run.lanczos_tolerance = " << tolerance << " not reached: relative change " << change
             << " after " << m << " Lanczos iterations; raise run.lanczos_tolerance or use "
             << "run.noise = \"cholesky\"";
-        throw OpenMM::OpenMMException(msg.str());
+        throw RPYStepFault(RPYStepFault::LanczosNotConverged, msg.str());
     }
     std::fill(out, out + dim, 0.0);
     for (int j = 0; j < used; j++) {

@@ -182,7 +182,7 @@ bool KnotMM::choleskyLowerBuiltin(std::vector<double>& a, int n) {
             if (j < i)
                 li[j] = s / lj[j];
             else {
-                if (!(s > 0.0))
+                if (!positivePivot(s))  // not `s > 0` here: this file assumes finite math
                     return false;
                 li[i] = std::sqrt(s);
             }

@@ -1,0 +1,68 @@
+#ifndef KNOTMM_REFERENCE_RPY_BACKEND_H_
+#define KNOTMM_REFERENCE_RPY_BACKEND_H_
+
+#include "RPYMobility.h"
+#include "knotmm/stepper/Backend.h"
+
+#include <vector>
+
+namespace OpenMM {
+class System;
+}
+
+namespace KnotMM {
+
+/** A vector of the Reference backend: host memory. */
+class ReferenceVector : public StateVector {
+public:
+    explicit ReferenceVector(int size) : a(size, 0.0) {}
+    std::vector<double> a;
+};
+
+/**
+ * The stepper's backend on OpenMM's Reference and CPU platforms (the CPU platform shares the
+ * Reference platform's PlatformData: positions and forces as std::vector<Vec3>, in double
+ * precision). Velocities by RPYMobility's O(n^2) pair loop; noise by the dense Cholesky
+ * factor (LAPACK's dpotrf when handed over) or by Lanczos (LanczosSqrt); vector operations as
+ * plain loops in strict IEEE arithmetic.
+ */
+class ReferenceRPYBackend : public RPYBackend {
+public:
+    ReferenceRPYBackend(const OpenMM::System& system, const RPYIntegrator& integrator);
+    int numBeads() const override { return n; }
+    VectorPtr createVector() override { return VectorPtr(new ReferenceVector(3 * n)); }
+    void applySettings(const RPYIntegrator& integrator) override;
+    void getPositions(OpenMM::ContextImpl& context, StateVector& y) override;
+    void setPositions(OpenMM::ContextImpl& context, const StateVector& y) override;
+    void velocity(OpenMM::ContextImpl& context, const StateVector& y, StateVector& v) override;
+    void groupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
+                       std::vector<double>& energies) override;
+    void noise(const StateVector& y, double scale, NoiseStream& stream, StateVector& out) override;
+    void combine(StateVector& out, std::initializer_list<Term> terms) override;
+    void copy(StateVector& out, const StateVector& in) override;
+    void setZero(StateVector& out) override;
+    bool equal(const StateVector& a, const StateVector& b) override;
+    double norm(const StateVector& v) override;
+    double maxBeadNorm(const StateVector& v) override;
+    int firstNonFinite(const StateVector& v) override;
+    void download(const StateVector& v, std::vector<double>& host) override;
+    void upload(const std::vector<double>& host, StateVector& v) override;
+
+private:
+    /** The Context's bead positions = y, shifted to their centre of mass if `shift`. */
+    void writePositions(OpenMM::ContextImpl& context, const std::vector<double>& y, bool shift) const;
+    int n = 0;
+    std::vector<int> beadParticle;  // bead -> particle index (virtual sites are not beads)
+    bool hasVirtualSites = false;
+    double diameter, mu0;
+    int numThreads;
+    RPYMobility mobility;
+    bool lanczos = false;
+    double lanczosTolerance = 1e-6;
+    LanczosSqrt lanczosSqrt;
+    std::vector<double> xs, fs, vs, zs, xi, mat;  // scratch: structure-of-arrays copies, the matrix
+};
+
+} // namespace KnotMM
+
+#endif

@@ -1,0 +1,221 @@
+#include "ReferenceRPYBackend.h"
+
+#include "knotmm/RPYIntegrator.h"
+#include "knotmm/RPYStepFault.h"
+#include "knotmm/stepper/NoiseStream.h"
+#include "openmm/System.h"
+#include "openmm/internal/ContextImpl.h"
+#include "openmm/reference/ReferencePlatform.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+using namespace OpenMM;
+using namespace KnotMM;
+using std::vector;
+
+namespace {
+
+ReferencePlatform::PlatformData& platformData(ContextImpl& context) {
+    return *static_cast<ReferencePlatform::PlatformData*>(context.getPlatformData());
+}
+
+inline vector<double>& data(StateVector& v) { return static_cast<ReferenceVector&>(v).a; }
+inline const vector<double>& data(const StateVector& v) { return static_cast<const ReferenceVector&>(v).a; }
+
+} // namespace
+
+ReferenceRPYBackend::ReferenceRPYBackend(const System& system, const RPYIntegrator& integrator)
+    : diameter(integrator.getBeadDiameter()), mu0(integrator.getMobility()),
+      numThreads(integrator.getNumThreads()), mobility(diameter, mu0, numThreads) {
+    for (int i = 0; i < system.getNumParticles(); i++) {
+        if (system.isVirtualSite(i))
+            hasVirtualSites = true;
+        else
+            beadParticle.push_back(i);
+    }
+    n = beadParticle.size();
+    for (vector<double>* v : {&xs, &fs, &vs, &zs, &xi})
+        v->assign(3 * n, 0.0);
+    applySettings(integrator);
+}
+
+void ReferenceRPYBackend::applySettings(const RPYIntegrator& integrator) {
+    lanczos = integrator.getNoiseMethod() == "lanczos";
+    lanczosTolerance = integrator.getLanczosTolerance();
+    if (integrator.getNumThreads() != numThreads) {
+        numThreads = integrator.getNumThreads();
+        mobility = RPYMobility(diameter, mu0, numThreads);
+    }
+}
+
+// --- the Context -------------------------------------------------------------------------------
+
+void ReferenceRPYBackend::getPositions(ContextImpl& context, StateVector& y) {
+    const vector<Vec3>& pos = *platformData(context).positions;
+    vector<double>& out = data(y);
+    for (int b = 0; b < n; b++)
+        for (int k = 0; k < 3; k++)
+            out[3 * b + k] = pos[beadParticle[b]][k];
+}
+
+void ReferenceRPYBackend::writePositions(ContextImpl& context, const vector<double>& in, bool shift) const {
+    vector<Vec3>& pos = *platformData(context).positions;
+    double com[3] = {0.0, 0.0, 0.0};
+    if (shift) {
+        for (int b = 0; b < n; b++)
+            for (int k = 0; k < 3; k++)
+                com[k] += in[3 * b + k];
+        for (int k = 0; k < 3; k++)
+            com[k] /= n;
+    }
+    for (int b = 0; b < n; b++)
+        pos[beadParticle[b]] = Vec3(in[3 * b] - com[0], in[3 * b + 1] - com[1], in[3 * b + 2] - com[2]);
+    if (hasVirtualSites)
+        context.computeVirtualSites();
+}
+
+void ReferenceRPYBackend::setPositions(ContextImpl& context, const StateVector& y) {
+    writePositions(context, data(y), false);
+}
+
+void ReferenceRPYBackend::velocity(ContextImpl& context, const StateVector& y, StateVector& v) {
+    const vector<double>& yy = data(y);
+    vector<double>& out = data(v);
+    writePositions(context, yy, true);
+    context.calcForcesAndEnergy(true, false, context.getIntegrator().getIntegrationForceGroups());
+    const vector<Vec3>& force = *platformData(context).forces;
+    for (int b = 0; b < n; b++)
+        for (int k = 0; k < 3; k++) {
+            xs[k * n + b] = yy[3 * b + k];
+            fs[k * n + b] = force[beadParticle[b]][k];
+        }
+    mobility.velocities(n, xs.data(), fs.data(), vs.data());
+    for (int b = 0; b < n; b++)
+        for (int k = 0; k < 3; k++)
+            out[3 * b + k] = vs[k * n + b];
+}
+
+void ReferenceRPYBackend::groupEnergies(ContextImpl& context, const vector<int>& groups, vector<double>& energies) {
+    // At the positions the steps evaluate forces at (writePositions with the shift, bit for
+    // bit), one energy-only evaluation per group, then the Context exactly as it was.
+    ReferencePlatform::PlatformData& platform = platformData(context);
+    const vector<Vec3> savedPositions = *platform.positions;
+    const vector<Vec3> savedForces = *platform.forces;
+    const int savedGroups = context.getLastForceGroups();
+    ReferenceVector at(3 * n);
+    getPositions(context, at);
+    energies.assign(groups.size(), 0.0);
+    try {
+        writePositions(context, at.a, true);
+        for (size_t i = 0; i < groups.size(); i++)
+            energies[i] = context.calcForcesAndEnergy(false, true, 1 << groups[i]);
+    }
+    catch (...) {
+        *platform.positions = savedPositions;
+        *platform.forces = savedForces;
+        context.getLastForceGroups() = savedGroups;
+        throw;
+    }
+    *platform.positions = savedPositions;
+    *platform.forces = savedForces;
+    context.getLastForceGroups() = savedGroups;
+}
+
+// --- noise -------------------------------------------------------------------------------------
+
+void ReferenceRPYBackend::noise(const StateVector& y, double scale, NoiseStream& stream, StateVector& outVector) {
+    const vector<double>& yy = data(y);
+    vector<double>& out = data(outVector);
+    for (int b = 0; b < n; b++)
+        for (int k = 0; k < 3; k++)
+            xs[k * n + b] = yy[3 * b + k];
+    if (lanczos) {
+        // B xi = mu^(1/2) xi by Lanczos, matrix-free (the pair loop of the velocities)
+        for (int i = 0; i < 3 * n; i++)
+            xi[i] = stream.normal();
+        for (int b = 0; b < n; b++)
+            for (int k = 0; k < 3; k++)
+                zs[k * n + b] = xi[3 * b + k];
+        lanczosSqrt.compute(mobility, n, xs.data(), zs.data(), lanczosTolerance, vs.data());
+        for (int b = 0; b < n; b++)
+            for (int k = 0; k < 3; k++)
+                out[3 * b + k] = scale * vs[k * n + b];
+        return;
+    }
+    // exact: the dense Cholesky factor of the 3n x 3n mobility
+    mobility.lowerMatrix(n, xs.data(), mat);
+    const int dim = 3 * n;
+    if (!choleskyLower(mat, dim))
+        throw RPYStepFault(RPYStepFault::NotPositiveDefinite,
+                           "RPYIntegrator: the RPY mobility is not positive definite at these "
+                           "positions (two beads at the same point?)");
+    for (int i = 0; i < dim; i++)
+        xi[i] = stream.normal();
+    lowerTimes(mat, dim, xi.data(), scale, out.data());
+}
+
+// --- vector operations ---------------------------------------------------------------------------
+
+void ReferenceRPYBackend::combine(StateVector& outVector, std::initializer_list<Term> terms) {
+    // out_i = t_0 + t_1 + ... left to right: the order the formulas are written in
+    const int m = 3 * n, count = (int) terms.size();
+    const double* v[8];
+    double c[8];
+    bool divide[8];
+    if (count < 1 || count > 8)
+        throw OpenMM::OpenMMException("ReferenceRPYBackend::combine: 1 to 8 terms");
+    int k = 0;
+    for (const Term& t : terms) {
+        v[k] = data(*t.v).data();
+        c[k] = t.c;
+        divide[k] = t.divide;
+        k++;
+    }
+    double* out = data(outVector).data();
+    for (int i = 0; i < m; i++) {
+        double acc = divide[0] ? v[0][i] / c[0] : c[0] * v[0][i];
+        for (int j = 1; j < count; j++)
+            acc = acc + (divide[j] ? v[j][i] / c[j] : c[j] * v[j][i]);
+        out[i] = acc;
+    }
+}
+
+void ReferenceRPYBackend::copy(StateVector& out, const StateVector& in) { data(out) = data(in); }
+
+void ReferenceRPYBackend::setZero(StateVector& out) { std::fill(data(out).begin(), data(out).end(), 0.0); }
+
+bool ReferenceRPYBackend::equal(const StateVector& a, const StateVector& b) { return data(a) == data(b); }
+
+double ReferenceRPYBackend::norm(const StateVector& vector) {
+    const std::vector<double>& v = data(vector);
+    double sum = 0.0;
+    for (double x : v)
+        sum += x * x;
+    return std::sqrt(sum);
+}
+
+double ReferenceRPYBackend::maxBeadNorm(const StateVector& vector) {
+    const std::vector<double>& e = data(vector);
+    double worst = 0.0;
+    bool finite = true;
+    for (int b = 0; b < n; b++) {
+        const double s = e[3 * b] * e[3 * b] + e[3 * b + 1] * e[3 * b + 1] + e[3 * b + 2] * e[3 * b + 2];
+        finite = finite && std::isfinite(s);
+        worst = std::max(worst, s);
+    }
+    return finite ? std::sqrt(worst) : std::numeric_limits<double>::infinity();
+}
+
+int ReferenceRPYBackend::firstNonFinite(const StateVector& vector) {
+    const std::vector<double>& v = data(vector);
+    for (int i = 0; i < (int) v.size(); i++)
+        if (!std::isfinite(v[i]))
+            return i;
+    return -1;
+}
+
+void ReferenceRPYBackend::download(const StateVector& v, std::vector<double>& host) { host = data(v); }
+
+void ReferenceRPYBackend::upload(const std::vector<double>& host, StateVector& v) { data(v) = host; }

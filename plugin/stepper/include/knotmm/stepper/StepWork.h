@@ -1,0 +1,54 @@
+#ifndef KNOTMM_STEPPER_STEP_WORK_H_
+#define KNOTMM_STEPPER_STEP_WORK_H_
+
+// What every method's step works on: the backend, the Context, the state at the step's start
+// and the velocity cached there, the noise stream and the counters.
+
+#include "knotmm/RPYMethods.h"
+#include "knotmm/stepper/Backend.h"
+#include "knotmm/stepper/NoiseStream.h"
+
+#include <map>
+#include <string>
+
+namespace KnotMM {
+
+/** A velocity and the positions and Context parameters it was computed at (FSAL). */
+struct VelocityCache {
+    VectorPtr v, positions;
+    std::map<std::string, double> parameters;
+    bool valid = false;
+};
+
+struct StepCounts {
+    long long evaluations = 0, accepted = 0, rejected = 0;
+};
+
+class StepWork {
+public:
+    StepWork(RPYBackend& backend, RPYMethod method);
+    RPYBackend& backend;
+    RPYMethod method;
+    OpenMM::ContextImpl* context = nullptr;  // set for each step
+    RPYIntegrator* integrator = nullptr;     // set for each step
+    double kT = 0.0;
+    VectorPtr y, y1;  // the step's start and end
+    VelocityCache k1;  // velocity at y
+    StepCounts counts;
+    NoiseStream noise;
+
+    /** v = mu(at) F(at): one force evaluation. */
+    void velocity(const StateVector& at, StateVector& v);
+    /** k1.v is the velocity at `at` with the Context's current parameters. */
+    void keepVelocity(const StateVector& at);
+    /** out = scale B(at) xi; scale == 0 gives zeros and draws nothing. */
+    void noiseSample(const StateVector& at, double scale, StateVector& out);
+    /** Largest per-bead norm of `err` over `tolerance`; +infinity if anything is not finite. */
+    double errorRatio(const StateVector& err, double tolerance);
+    /** The method's name (messages). */
+    const char* name() const { return rpyMethodInfo(method).name; }
+};
+
+} // namespace KnotMM
+
+#endif

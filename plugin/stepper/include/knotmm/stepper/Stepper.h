@@ -1,0 +1,45 @@
+#ifndef KNOTMM_STEPPER_STEPPER_H_
+#define KNOTMM_STEPPER_STEPPER_H_
+
+// The platform-independent part of RPYIntegrator: one accepted step of any method (the
+// formulas in FixedSteps, RK23Control, RKC2Control), landing on target times, faults, and the
+// checkpoint layout, over the vector operations and physics of an RPYBackend.
+
+#include "knotmm/RPYIntegrator.h"
+#include "knotmm/stepper/FixedSteps.h"
+#include "knotmm/stepper/RK23.h"
+#include "knotmm/stepper/RKC2.h"
+
+#include <iosfwd>
+
+namespace KnotMM {
+
+class Stepper {
+public:
+    /** The method, noise seed and rkc2 start vector come from `integrator`. */
+    Stepper(RPYBackend& backend, const RPYIntegrator& integrator);
+    /**
+     * Take one accepted step, never past targetTime (ps; +infinity for none), and update the
+     * Context's positions, time and step count; returns the step taken. On a fault
+     * (RPYStepFault, or any other exception) the Context keeps the step's start.
+     */
+    double step(OpenMM::ContextImpl& context, RPYIntegrator& integrator, double targetTime);
+    /** Forget cached velocities (the state was changed from outside). */
+    void invalidateCache();
+    /** Everything that decides the next steps, so a restored run repeats bit for bit. */
+    void createCheckpoint(std::ostream& stream) const;
+    void loadCheckpoint(std::istream& stream);
+    const StepCounts& counts() const { return work.counts; }
+    int lastStages() const { return rkc2.lastStages; }
+    double spectralRadius() const { return rkc2.spectralRadiusEstimate(); }
+
+private:
+    StepWork work;
+    FixedSteps fixed;
+    RK23Control rk23;
+    RKC2Control rkc2;
+};
+
+} // namespace KnotMM
+
+#endif

@@ -1,0 +1,37 @@
+#include "knotmm/stepper/StepWork.h"
+
+#include "openmm/internal/ContextImpl.h"
+
+#include <cmath>
+#include <limits>
+
+using namespace KnotMM;
+
+StepWork::StepWork(RPYBackend& backend, RPYMethod method)
+    : backend(backend), method(method), y(backend.createVector()), y1(backend.createVector()) {
+    k1.v = backend.createVector();
+    k1.positions = backend.createVector();
+}
+
+void StepWork::velocity(const StateVector& at, StateVector& v) {
+    backend.velocity(*context, at, v);
+    counts.evaluations++;
+}
+
+void StepWork::keepVelocity(const StateVector& at) {
+    k1.valid = true;
+    backend.copy(*k1.positions, at);
+    k1.parameters = context->getParameters();
+}
+
+void StepWork::noiseSample(const StateVector& at, double scale, StateVector& out) {
+    if (scale == 0.0)
+        backend.setZero(out);
+    else
+        backend.noise(at, scale, noise, out);
+}
+
+double StepWork::errorRatio(const StateVector& err, double tolerance) {
+    const double norm = backend.maxBeadNorm(err);
+    return std::isfinite(norm) ? norm / tolerance : std::numeric_limits<double>::infinity();
+}
