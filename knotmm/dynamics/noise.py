@@ -344,6 +344,27 @@ class NoiseGenerator:
         y, self.last_iterations = _lanczos_mobility(x, z, self.tolerance, self.max_iter)
         return y.reshape(x.shape)
 
+    def matrix(self, positions):
+        """``z -> B(positions) z`` for given increments ``z`` (shape (n_beads, 3)).
+
+        Cholesky: the factor is computed once, here, and applied to every ``z``; Lanczos: each
+        call runs the Krylov iteration for its ``z``. For integrators that apply the noise
+        matrix of one point to several increments (a retried adaptive step).
+        """
+        x = _positions(positions)
+        method = self.method_for(x.shape[0])
+        self.last_method = method
+        if method == "cholesky":
+            factor = mobility_cholesky(x)
+            self.last_iterations = 0
+            return lambda z: (factor @ np.asarray(z, dtype=np.float64).reshape(-1)).reshape(x.shape)
+
+        def lanczos(z):
+            y, self.last_iterations = _lanczos_mobility(
+                x, np.asarray(z, dtype=np.float64).reshape(-1), self.tolerance, self.max_iter)
+            return y.reshape(x.shape)
+        return lanczos
+
     def describe(self) -> str:
         if self.method == "cholesky":
             return "cholesky"

@@ -17,6 +17,7 @@ const std::vector<RPYMethodInfo>& KnotMM::rpyMethodTable() {
         {RPYMethod::EulerMaruyama, "euler_maruyama", 1, false, true},
         {RPYMethod::ItoHeun, "ito_heun", 1, false, true},
         {RPYMethod::LeimkuhlerMatthews, "leimkuhler_matthews", 1, false, true},
+        {RPYMethod::ItoHeunAdaptive, "ito_heun_adaptive", 1, true, true},
     };
     return table;
 }

@@ -8,7 +8,8 @@
 using namespace KnotMM;
 
 StepWork::StepWork(RPYBackend& backend, RPYMethod method)
-    : backend(backend), method(method), y(backend.createVector()), y1(backend.createVector()) {
+    : backend(backend), method(method), y(backend.createVector()), y1(backend.createVector()),
+      xi(backend.createVector()) {
     k1.v = backend.createVector();
     k1.positions = backend.createVector();
 }
@@ -25,10 +26,13 @@ void StepWork::keepVelocity(const StateVector& at) {
 }
 
 void StepWork::noiseSample(const StateVector& at, double scale, StateVector& out) {
-    if (scale == 0.0)
+    if (scale == 0.0) {
         backend.setZero(out);
-    else
-        backend.noise(at, scale, noise, out);
+        return;
+    }
+    backend.factorNoise(at);
+    backend.normals(noise, *xi);
+    backend.applyNoise(scale, *xi, out);
 }
 
 double StepWork::errorRatio(const StateVector& err, double tolerance) {

@@ -23,7 +23,7 @@ std::string fmt(double x) {
 
 Stepper::Stepper(RPYBackend& backend, const RPYIntegrator& integrator)
     : work(backend, rpyMethodInfo(integrator.getMethod()).id), fixed(backend), rk23(backend),
-      rkc2(backend, integrator.getSpectralRadiusStartVector()) {
+      rkc2(backend, integrator.getSpectralRadiusStartVector()), brownian(backend) {
     const int seed = integrator.getRandomNumberSeed();
     // 0: a fresh stream each time, as OpenMM's own integrators
     work.noise.seed(seed != 0 ? (uint64_t) (uint32_t) seed
@@ -59,6 +59,8 @@ double Stepper::step(ContextImpl& context, RPYIntegrator& integrator, double tar
             h = rk23.step(work, maxDt);
         else if (work.method == RPYMethod::RKC2)
             h = rkc2.step(work, maxDt);
+        else if (work.method == RPYMethod::ItoHeunAdaptive)
+            h = brownian.step(work, maxDt);
         else
             h = fixed.step(work, std::min(integrator.getStepSize(), maxDt));
         const int bad = b.firstNonFinite(*work.y1);

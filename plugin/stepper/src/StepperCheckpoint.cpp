@@ -1,5 +1,7 @@
-// The stepper's checkpoint layout. Version 3 (leimkuhler_matthews's held kick) is written;
-// version 2 (without it) still loads. The order of the fields is the layout: append only.
+// The stepper's checkpoint layout. Version 4 (ito_heun_adaptive's controller memory and
+// queued Wiener increments) is written; versions 3 (without them) and 2 (without
+// leimkuhler_matthews's held kick either) still load. The order of the fields is the layout:
+// append only.
 
 #include "knotmm/stepper/BinaryIO.h"
 #include "knotmm/stepper/Stepper.h"
@@ -10,7 +12,7 @@ using namespace KnotMM;
 using namespace KnotMM::binary;
 
 namespace {
-const int CHECKPOINT_VERSION = 3;
+const int CHECKPOINT_VERSION = 4;
 
 void putState(std::ostream& stream, RPYBackend& b, bool have, const StateVector& v) {
     std::vector<double> host;
@@ -62,6 +64,12 @@ void Stepper::createCheckpoint(std::ostream& stream) const {
     put(stream, fixed.held.valid);
     putState(stream, b, fixed.held.valid, *fixed.held.kick);
     putState(stream, b, fixed.held.valid, *fixed.held.positions);
+    put(stream, brownian.errOld);
+    put(stream, (long long) brownian.queue.pending.size());
+    for (const auto& entry : brownian.queue.pending) {
+        put(stream, entry.first);
+        putState(stream, b, true, *entry.second);
+    }
 }
 
 void Stepper::loadCheckpoint(std::istream& stream) {
@@ -70,7 +78,7 @@ void Stepper::loadCheckpoint(std::istream& stream) {
     get(stream, version);
     get(stream, savedMethod);
     get(stream, savedN);
-    if ((version != CHECKPOINT_VERSION && version != 2) || savedMethod != (int) work.method ||
+    if (version < 2 || version > CHECKPOINT_VERSION || savedMethod != (int) work.method ||
         savedN != b.numBeads())
         throw OpenMM::OpenMMException("RPYIntegrator: the checkpoint was written with another method, "
                                       "bead count or plugin version");
@@ -112,6 +120,21 @@ void Stepper::loadCheckpoint(std::istream& stream) {
         const bool haveKick = getState(stream, b, *fixed.held.kick);
         const bool haveAt = getState(stream, b, *fixed.held.positions);
         fixed.held.valid = held && haveKick && haveAt;
+    }
+    brownian.errOld = 1.0;
+    brownian.queue.clear();
+    if (version >= 4) {
+        get(stream, brownian.errOld);
+        long long entries = 0;
+        get(stream, entries);
+        for (long long i = 0; i < entries && stream; i++) {
+            double span = 0.0;
+            get(stream, span);
+            VectorPtr dw = b.createVector();
+            if (!getState(stream, b, *dw))
+                throw OpenMM::OpenMMException("RPYIntegrator: the checkpoint's Wiener queue is damaged");
+            brownian.queue.pending.emplace_back(span, std::move(dw));
+        }
     }
     if (!stream)
         throw OpenMM::OpenMMException("RPYIntegrator: the checkpoint is truncated");

@@ -22,6 +22,7 @@ enum class RPYMethod : int {
     EulerMaruyama = 5,
     ItoHeun = 6,
     LeimkuhlerMatthews = 7,
+    ItoHeunAdaptive = 8,
 };
 
 struct RPYMethodInfo {
@@ -30,6 +31,7 @@ struct RPYMethodInfo {
     int order;          // order of accuracy (Brownian: weak order)
     bool adaptive;      // the step size follows error control
     bool stochastic;    // integrates the Ito equation with noise when kT > 0
+                        // (ito_heun_adaptive is both: adaptive and stochastic)
 };
 
 /** Every method, in the order of their ids. */

@@ -37,7 +37,9 @@ public:
     void velocity(OpenMM::ContextImpl& context, const StateVector& y, StateVector& v) override;
     void groupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
                        std::vector<double>& energies) override;
-    void noise(const StateVector& y, double scale, NoiseStream& stream, StateVector& out) override;
+    void factorNoise(const StateVector& y) override;
+    void applyNoise(double scale, const StateVector& z, StateVector& out) override;
+    void normals(NoiseStream& stream, StateVector& out) override;
     void combine(StateVector& out, std::initializer_list<Term> terms) override;
     void copy(StateVector& out, const StateVector& in) override;
     void setZero(StateVector& out) override;
@@ -60,7 +62,8 @@ private:
     bool lanczos = false;
     double lanczosTolerance = 1e-6;
     LanczosSqrt lanczosSqrt;
-    std::vector<double> xs, fs, vs, zs, xi, mat;  // scratch: structure-of-arrays copies, the matrix
+    std::vector<double> xs, fs, vs, zs, mat;  // scratch: structure-of-arrays copies, the matrix
+    std::vector<double> noiseAt;              // factorNoise's positions, structure of arrays
 };
 
 } // namespace KnotMM

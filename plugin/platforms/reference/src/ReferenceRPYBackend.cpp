@@ -36,7 +36,7 @@ ReferenceRPYBackend::ReferenceRPYBackend(const System& system, const RPYIntegrat
             beadParticle.push_back(i);
     }
     n = beadParticle.size();
-    for (vector<double>* v : {&xs, &fs, &vs, &zs, &xi})
+    for (vector<double>* v : {&xs, &fs, &vs, &zs})
         v->assign(3 * n, 0.0);
     applySettings(integrator);
 }
@@ -125,35 +125,42 @@ void ReferenceRPYBackend::groupEnergies(ContextImpl& context, const vector<int>&
 
 // --- noise -------------------------------------------------------------------------------------
 
-void ReferenceRPYBackend::noise(const StateVector& y, double scale, NoiseStream& stream, StateVector& outVector) {
+void ReferenceRPYBackend::factorNoise(const StateVector& y) {
     const vector<double>& yy = data(y);
-    vector<double>& out = data(outVector);
+    noiseAt.resize(3 * n);
     for (int b = 0; b < n; b++)
         for (int k = 0; k < 3; k++)
-            xs[k * n + b] = yy[3 * b + k];
-    if (lanczos) {
-        // B xi = mu^(1/2) xi by Lanczos, matrix-free (the pair loop of the velocities)
-        for (int i = 0; i < 3 * n; i++)
-            xi[i] = stream.normal();
-        for (int b = 0; b < n; b++)
-            for (int k = 0; k < 3; k++)
-                zs[k * n + b] = xi[3 * b + k];
-        lanczosSqrt.compute(mobility, n, xs.data(), zs.data(), lanczosTolerance, vs.data());
-        for (int b = 0; b < n; b++)
-            for (int k = 0; k < 3; k++)
-                out[3 * b + k] = scale * vs[k * n + b];
-        return;
-    }
+            noiseAt[k * n + b] = yy[3 * b + k];
+    if (lanczos)
+        return;  // matrix-free: applyNoise runs the Krylov iteration at noiseAt
     // exact: the dense Cholesky factor of the 3n x 3n mobility
-    mobility.lowerMatrix(n, xs.data(), mat);
-    const int dim = 3 * n;
-    if (!choleskyLower(mat, dim))
+    mobility.lowerMatrix(n, noiseAt.data(), mat);
+    if (!choleskyLower(mat, 3 * n))
         throw RPYStepFault(RPYStepFault::NotPositiveDefinite,
                            "RPYIntegrator: the RPY mobility is not positive definite at these "
                            "positions (two beads at the same point?)");
-    for (int i = 0; i < dim; i++)
-        xi[i] = stream.normal();
-    lowerTimes(mat, dim, xi.data(), scale, out.data());
+}
+
+void ReferenceRPYBackend::applyNoise(double scale, const StateVector& z, StateVector& outVector) {
+    const vector<double>& zz = data(z);
+    vector<double>& out = data(outVector);
+    if (!lanczos) {
+        lowerTimes(mat, 3 * n, zz.data(), scale, out.data());
+        return;
+    }
+    // B z = mu^(1/2) z by Lanczos, matrix-free (the pair loop of the velocities)
+    for (int b = 0; b < n; b++)
+        for (int k = 0; k < 3; k++)
+            zs[k * n + b] = zz[3 * b + k];
+    lanczosSqrt.compute(mobility, n, noiseAt.data(), zs.data(), lanczosTolerance, vs.data());
+    for (int b = 0; b < n; b++)
+        for (int k = 0; k < 3; k++)
+            out[3 * b + k] = scale * vs[k * n + b];
+}
+
+void ReferenceRPYBackend::normals(NoiseStream& stream, StateVector& outVector) {
+    for (double& x : data(outVector))
+        x = stream.normal();
 }
 
 // --- vector operations ---------------------------------------------------------------------------

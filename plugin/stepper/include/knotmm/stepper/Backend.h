@@ -72,11 +72,17 @@ public:
 
     // --- noise ---------------------------------------------------------------------------
     /**
-     * out = scale B(y) xi, B B^T = mu(y), xi 3n standard normals drawn from `stream` in
-     * bead-major order (whatever the method: Cholesky or Lanczos, applySettings). Throws
-     * RPYStepFault (NotPositiveDefinite, LanczosNotConverged) when it cannot.
+     * Prepare B(y), B B^T = mu(y), for applyNoise (Cholesky: factorise the mobility; Lanczos:
+     * remember y). Throws RPYStepFault (NotPositiveDefinite) when it cannot.
      */
-    virtual void noise(const StateVector& y, double scale, NoiseStream& stream, StateVector& out) = 0;
+    virtual void factorNoise(const StateVector& y) = 0;
+    /**
+     * out = scale B z with the B of the last factorNoise (Cholesky or Lanczos, applySettings).
+     * Throws RPYStepFault (LanczosNotConverged) when it cannot.
+     */
+    virtual void applyNoise(double scale, const StateVector& z, StateVector& out) = 0;
+    /** out = 3n standard normals from `stream`, bead-major (drawn on the host). */
+    virtual void normals(NoiseStream& stream, StateVector& out) = 0;
 
     // --- vector operations -----------------------------------------------------------------
     /**

@@ -36,12 +36,13 @@ public:
     VelocityCache k1;  // velocity at y
     StepCounts counts;
     NoiseStream noise;
+    VectorPtr xi;  // scratch: standard normals
 
     /** v = mu(at) F(at): one force evaluation. */
     void velocity(const StateVector& at, StateVector& v);
     /** k1.v is the velocity at `at` with the Context's current parameters. */
     void keepVelocity(const StateVector& at);
-    /** out = scale B(at) xi; scale == 0 gives zeros and draws nothing. */
+    /** out = scale B(at) xi, xi fresh normals; scale == 0 gives zeros and draws nothing. */
     void noiseSample(const StateVector& at, double scale, StateVector& out);
     /** Largest per-bead norm of `err` over `tolerance`; +infinity if anything is not finite. */
     double errorRatio(const StateVector& err, double tolerance);

@@ -2,10 +2,12 @@
 #define KNOTMM_STEPPER_STEPPER_H_
 
 // The platform-independent part of RPYIntegrator: one accepted step of any method (the
-// formulas in FixedSteps, RK23Control, RKC2Control), landing on target times, faults, and the
-// checkpoint layout, over the vector operations and physics of an RPYBackend.
+// formulas in FixedSteps, RK23Control, RKC2Control, AdaptiveBrownian), landing on target
+// times, faults, and the checkpoint layout, over the vector operations and physics of an
+// RPYBackend.
 
 #include "knotmm/RPYIntegrator.h"
+#include "knotmm/stepper/AdaptiveBrownian.h"
 #include "knotmm/stepper/FixedSteps.h"
 #include "knotmm/stepper/RK23.h"
 #include "knotmm/stepper/RKC2.h"
@@ -38,6 +40,7 @@ private:
     FixedSteps fixed;
     RK23Control rk23;
     RKC2Control rkc2;
+    AdaptiveBrownian brownian;
 };
 
 } // namespace KnotMM
