@@ -79,10 +79,13 @@ class Key:
 def resolve_stepping(cfg) -> tuple[str, float]:
     """The integrator and step a run uses: ``run.integrator`` and ``run.timestep`` resolved.
 
-    ``integrator = "auto"`` is ``rk23`` for deterministic runs (``run.peclet = inf``) and
-    ``ito_heun`` at a finite Peclet number; an unset ``timestep`` is 0.002 for a Brownian
-    integrator at finite Pe, else 0.01 (:func:`knotmm.dynamics.registry.resolve`, which
-    holds the policy). So setting ``run.peclet`` alone gives a sound Brownian run.
+    ``integrator = "auto"`` is ``rk23`` for deterministic runs (``run.peclet = inf``; a run
+    then takes ``rkc2`` instead when the chain is stiff) and ``leimkuhler_matthews``
+    (:data:`knotmm.dynamics.registry.AUTO_BROWNIAN`) at a finite Peclet number; an unset
+    ``timestep`` is the integrator's default step at finite Pe (0.01 for
+    leimkuhler_matthews, 0.002 for ito_heun and euler_maruyama), else 0.01
+    (:func:`knotmm.dynamics.registry.resolve`, which holds the policy). So setting
+    ``run.peclet`` alone gives a sound Brownian run.
 
     Parameters
     ----------
@@ -94,6 +97,11 @@ def resolve_stepping(cfg) -> tuple[str, float]:
         Integrator name and step in tau_d.
     """
     return registry.resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
+
+
+def resolve_tolerance(cfg, integrator: str) -> float:
+    """``run.tolerance`` for ``integrator`` (a resolved name): as given, or its default in d."""
+    return registry.resolve_tolerance(integrator, cfg["run.tolerance"])
 
 
 #: Every key a run file may hold, by table. Defaults are the study's parameters.
@@ -139,18 +147,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "integrator": Key(
             "str", "auto",
             "time stepper: auto (default: rk23 at run.peclet = inf, or rkc2 when the chain is "
-            "stiff; ito_heun at finite Pe), rk23 (adaptive), rkc2 (adaptive, for very stiff "
-            "chains), heun, midpoint, euler; finite run.peclet: ito_heun, "
-            "leimkuhler_matthews (timestep 0.01, about 6x faster) or euler_maruyama",
+            f"stiff; {registry.AUTO_BROWNIAN} at finite Pe), rk23 (adaptive), rkc2 "
+            "(adaptive, for very stiff chains), heun, midpoint, euler; finite run.peclet: "
+            "leimkuhler_matthews (timestep 0.01, 6-12x faster than ito_heun), ito_heun "
+            "(timestep 0.002) or euler_maruyama",
             choices=(registry.AUTO, *registry.NAMES),
         ),
         "timestep": Key(
             "float", None, "step in tau_d (fixed-step and Brownian integrators); the first "
-            "step of an adaptive one; default 0.01, or 0.002 for Brownian dynamics",
+            "step of an adaptive one; default 0.01 (at finite run.peclet: 0.01 for "
+            "leimkuhler_matthews, 0.002 for ito_heun and euler_maruyama)",
             0.0, None, True,
         ),
         "tolerance": Key(
-            "float", 1e-4, "adaptive integrators: local error per step, in d", 0.0, None, True,
+            "float", None, "adaptive integrators: local error per step, in d; default 1e-4 "
+            "(ito_heun_adaptive: 0.02, its error estimate carries the noise displacement)",
+            0.0, None, True,
         ),
         "max_timestep": Key("float", 1.0, "adaptive integrators: largest step, in tau_d", 0.0,
                             None, True),
@@ -170,11 +182,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "engine": Key(
             "str", "auto",
             "who integrates: plugin (the compiled knotmm.plugin.RPYIntegrator: every step in "
-            "C++, same steps as python for deterministic methods; Cholesky noise; Reference "
-            "and CPU platforms), python (the Python integrators, the reference), auto (plugin "
-            "when it is built, except Brownian runs at finite run.peclet, whose plugin steps "
-            "cost 1.3-1.6x the python engine's at N = 90, and GPU platforms: python)",
-            choices=("auto", "plugin", "python"),
+            "C++, same steps as python for deterministic methods; Cholesky or Lanczos noise; "
+            "Reference and CPU platforms), python (the Python integrators, the reference), "
+            "auto (plugin when it is built, Brownian runs too; python otherwise and on GPU "
+            "platforms)",
+            choices=("auto", registry.PLUGIN_ENGINE, registry.PYTHON_ENGINE),
         ),
         "threads": Key("int", 1, "CPU platform threads", 1),
         "mobility_threads": Key(

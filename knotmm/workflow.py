@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from knotmm import __version__
-from knotmm.config import RunConfig, resolve_stepping
-from knotmm.dynamics.registry import AUTO, auto_deterministic
+from knotmm.config import RunConfig, resolve_stepping, resolve_tolerance
+from knotmm.dynamics.registry import AUTO, REGISTRY, auto_deterministic
 from knotmm.engine.checkpoint import CheckpointReporter, read_checkpoint
 from knotmm.engine.interrupt import StopRequested, describe_signal, stop_signal
 from knotmm.engine.knot_checks import (
@@ -189,7 +189,8 @@ def run(
     directory = Path(directory if directory is not None else cfg["output.directory"])
     name, timestep = resolve_stepping(cfg)  # run.toml records what is used, not "auto"
     by_stiffness = cfg["run.integrator"] == AUTO and not math.isfinite(cfg["run.peclet"])
-    cfg = cfg.replace({"run.integrator": name, "run.timestep": timestep})
+    cfg = cfg.replace({"run.integrator": name, "run.timestep": timestep,
+                       "run.tolerance": resolve_tolerance(cfg, name)})
     integrator_from_config(cfg)  # checks the integrator against run.peclet before the template
     check_stop_on_change(cfg)
     template = build_template(cfg, identify="later")  # judged beside the run
@@ -204,7 +205,9 @@ def run(
         log.info("run.integrator auto: stiffness %.4g / tau_d -> %s", stiffness, choice)
         if choice != name:
             cfg = cfg.replace({"run.integrator": choice})
-            sim = Simulation.from_config(cfg, template.positions)
+            # the engine already chosen (and warned about) when the new integrator has it
+            engine = sim.engine if sim.engine in REGISTRY[choice].engines else None
+            sim = Simulation.from_config(cfg, template.positions, engine=engine)
     if directory.exists() and not directory.is_dir():
         prepare_directory(directory, overwrite)  # says it is a file
     lock = RunLock(directory, "run")
@@ -321,7 +324,9 @@ def _checkpoint_engine(directory: Path, engine: str) -> str:
     """The engine a resumed run continues with: the one that wrote its checkpoint.
 
     A run goes on exactly only with the engine it was made with, whatever ``run.engine =
-    "auto"`` would pick here now; a plugin run where the plugin is missing is refused.
+    "auto"`` would pick here now; a plugin run where the plugin is missing is refused. A
+    plugin that needs a rebuild is named in one warning, as on every run
+    (:func:`knotmm.engine.engines.resolve_engine`).
     """
     import knotmm.plugin
 
@@ -331,6 +336,9 @@ def _checkpoint_engine(directory: Path, engine: str) -> str:
             f"cannot be used here ({knotmm.plugin.load_error()}); resume it where the plugin "
             f"is built"
         )
+    if knotmm.plugin.rebuild_needed():
+        log.warning("%s; the run goes on with the %s engine it was made with",
+                    knotmm.plugin.load_error(), engine)
     return engine
 
 
@@ -466,7 +474,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
             time=sim.time,
             steps=sim.currentStep,
             evaluations=sim.n_evaluations,
-            rejected=sim.integrator.n_rejected,
+            rejected=sim.n_rejected,
             frames=frames,
             wall_time=wall,
             sedimentation_velocity=velocity,
@@ -478,7 +486,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
             time_reached=sim.time,
             steps=sim.currentStep,
             evaluations=sim.n_evaluations,
-            rejected_steps=sim.integrator.n_rejected,
+            rejected_steps=sim.n_rejected,
             frames=frames,
             wall_time_s=round(wall, 3),
             mean_sedimentation_velocity=velocity,

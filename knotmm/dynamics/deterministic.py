@@ -95,6 +95,22 @@ class Integrator:
     def reset(self) -> None:
         """Forget cached velocities (call after positions were changed from outside)."""
 
+    @property
+    def held_velocity(self) -> np.ndarray | None:
+        """The velocity at the current positions that the next step reuses, or ``None``.
+
+        ndarray, shape (n_beads, 3), in d/tau_d: the last stage of an accepted step of an
+        FSAL integrator (:class:`RK23`, :class:`RKC2`), the first stage of the next one.
+        Other integrators hold none and ignore a value set. A checkpoint stores it
+        (:meth:`knotmm.engine.simulation.Simulation.saveCheckpoint`) and sets it back after
+        :meth:`set_state` (which forgets it), so a resumed run does not evaluate it again.
+        """
+        return None
+
+    @held_velocity.setter
+    def held_velocity(self, velocity) -> None:
+        pass
+
     def step(self, rhs: Rhs, y: np.ndarray, max_dt: float = math.inf) -> tuple[np.ndarray, float]:
         """Advance one accepted step of at most ``max_dt``; return ``(y_new, dt)``."""
         raise NotImplementedError
@@ -204,6 +220,15 @@ class _Adaptive(Integrator):
 
     def reset(self):
         self._f0 = None
+
+    @property
+    def held_velocity(self) -> np.ndarray | None:
+        """The velocity at the current positions (FSAL), shape (n_beads, 3), or ``None``."""
+        return self._f0
+
+    @held_velocity.setter
+    def held_velocity(self, velocity) -> None:
+        self._f0 = None if velocity is None else np.asarray(velocity, dtype=np.float64)
 
     def _check_floor(self, h: float, reason: str) -> None:
         if h < self.min_timestep:

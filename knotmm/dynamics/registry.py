@@ -2,17 +2,20 @@
 
 Every integrator a run file may name (``run.integrator``) is one :class:`IntegratorInfo` in
 :data:`REGISTRY`: where its class lives, its order, whether it is adaptive and whether it
-integrates the stochastic (finite Peclet) equation, a one-line description and its default
-step. :mod:`knotmm.config` validates ``run.integrator`` against :data:`NAMES`;
-:func:`resolve` turns ``"auto"`` and an unset step into what a run uses; :func:`make` and
-:func:`integrator_from_config` build any of them.
+integrates the stochastic (finite Peclet) equation, a one-line description, its default
+step, and the engines that have it (``run.engine``: :data:`PYTHON_ENGINE`, the class here;
+:data:`PLUGIN_ENGINE`, its C++ counterpart in the compiled plugin, whose own table
+``knotmm.plugin.METHODS`` a test holds to this one). :mod:`knotmm.config` validates
+``run.integrator`` against :data:`NAMES`; :func:`resolve` turns ``"auto"`` and an unset step
+into what a run uses; :func:`make` and :func:`integrator_from_config` build any of them.
 
 The classes are imported only when one is built (:meth:`IntegratorInfo.load`), so importing
 this module (and :mod:`knotmm.config`) costs no numba or scipy start-up.
 
 Adding an integrator: write its class in one module of :mod:`knotmm.dynamics` (a subclass
 of :class:`knotmm.dynamics.deterministic.Integrator`, with ``name`` and ``order``), and add
-one entry here (``docs/architecture.md``).
+one entry here (``docs/architecture.md``); list :data:`PLUGIN_ENGINE` in its ``engines`` once
+the plugin has it too.
 
 Examples
 --------
@@ -38,15 +41,20 @@ from knotmm.units import thermal_energy
 __all__ = [
     "AUTO",
     "AUTO_BROWNIAN",
+    "BOTH_ENGINES",
     "BROWNIAN_NAMES",
     "DEFAULT_BROWNIAN_TIMESTEP",
     "DEFAULT_TIMESTEP",
+    "DEFAULT_TOLERANCE",
     "NAMES",
+    "PLUGIN_ENGINE",
+    "PYTHON_ENGINE",
     "REGISTRY",
     "IntegratorInfo",
     "integrator_from_config",
     "make",
     "resolve",
+    "resolve_tolerance",
 ]
 
 log = logging.getLogger(__name__)
@@ -58,10 +66,17 @@ DEFAULT_TIMESTEP = 0.01
 #: Step of Brownian integrators at finite Pe when none is given (see
 #: :mod:`knotmm.dynamics.brownian`, "Step size").
 DEFAULT_BROWNIAN_TIMESTEP = 0.002
+#: ``run.tolerance`` of the deterministic adaptive integrators when none is given, in d.
+DEFAULT_TOLERANCE = 1e-4
 #: What ``"auto"`` is at a finite Peclet number.
 AUTO_BROWNIAN = "leimkuhler_matthews"
 #: Above this fixed step (tau_d) a Brownian run warns: stiff bond modes go unstable.
 _BROWNIAN_STEP_WARNING = 0.01
+#: The engines (``run.engine`` values other than ``"auto"``): the integrator classes of
+#: :mod:`knotmm.dynamics` stepped from Python, and the compiled plugin.
+PYTHON_ENGINE = "python"
+PLUGIN_ENGINE = "plugin"
+BOTH_ENGINES = (PYTHON_ENGINE, PLUGIN_ENGINE)
 
 
 @dataclass(frozen=True)
@@ -86,6 +101,12 @@ class IntegratorInfo:
         One line, for help texts.
     default_timestep : float
         ``run.timestep`` when none is given, in tau_d.
+    default_tolerance : float
+        ``run.tolerance`` when none is given (adaptive integrators), in d.
+    engines : tuple of str
+        The engines that have it: :data:`PYTHON_ENGINE` (every entry: the class above) and
+        :data:`PLUGIN_ENGINE` when the compiled plugin has a C++ counterpart (same name,
+        order, adaptive and stochastic flags in its ``methodTable()``).
     """
 
     name: str
@@ -96,6 +117,8 @@ class IntegratorInfo:
     brownian: bool
     description: str
     default_timestep: float
+    engines: tuple[str, ...] = (PYTHON_ENGINE,)
+    default_tolerance: float = DEFAULT_TOLERANCE
 
     def load(self) -> type:
         """The integrator class (imports its module)."""
@@ -112,39 +135,47 @@ REGISTRY: dict[str, IntegratorInfo] = {
         IntegratorInfo(
             "rk23", _DET, "RK23", 3, True, False,
             "Bogacki-Shampine 3(2), adaptive; the default at Pe = inf", DEFAULT_TIMESTEP,
+            engines=BOTH_ENGINES,
         ),
         IntegratorInfo(
             "rkc2", _DET, "RKC2", 2, True, False,
             "Runge-Kutta-Chebyshev, adaptive step and stages, for very stiff chains",
-            DEFAULT_TIMESTEP,
+            DEFAULT_TIMESTEP, engines=BOTH_ENGINES,
         ),
         IntegratorInfo(
             "heun", _DET, "Heun", 2, False, False, "explicit trapezoid, fixed step",
-            DEFAULT_TIMESTEP,
+            DEFAULT_TIMESTEP, engines=BOTH_ENGINES,
         ),
         IntegratorInfo(
             "midpoint", _DET, "Midpoint", 2, False, False, "explicit midpoint, fixed step",
-            DEFAULT_TIMESTEP,
+            DEFAULT_TIMESTEP, engines=BOTH_ENGINES,
         ),
         IntegratorInfo(
             "euler", _DET, "Euler", 1, False, False, "forward Euler, fixed step",
-            DEFAULT_TIMESTEP,
+            DEFAULT_TIMESTEP, engines=BOTH_ENGINES,
         ),
         IntegratorInfo(
             "ito_heun", _BROWN, "ItoHeun", 1, False, True,
             "Heun drift with Ito noise, fixed step",
-            DEFAULT_BROWNIAN_TIMESTEP,
+            DEFAULT_BROWNIAN_TIMESTEP, engines=BOTH_ENGINES,
         ),
         IntegratorInfo(
             "leimkuhler_matthews", _BROWN, "LeimkuhlerMatthews", 1, False, True,
             "Leimkuhler-Matthews, fixed step, one velocity a step; Boltzmann bond "
             "fluctuations at 0.01 tau_d; the default at finite Pe",
-            0.01,
+            0.01, engines=BOTH_ENGINES,
         ),
         IntegratorInfo(
             "euler_maruyama", _BROWN, "EulerMaruyama", 1, False, True,
             "Euler-Maruyama, fixed step (needs h <= 0.001 at Pe ~ 2)",
-            DEFAULT_BROWNIAN_TIMESTEP,
+            DEFAULT_BROWNIAN_TIMESTEP, engines=BOTH_ENGINES,
+        ),
+        IntegratorInfo(
+            "ito_heun_adaptive", "knotmm.dynamics.adaptive_brownian", "AdaptiveItoHeun", 1,
+            True, True,
+            "Euler-Heun pair, adaptive step (PI control, rejected noise kept by Brownian "
+            "bridges); survives close steric contacts at Pe <= 1",
+            DEFAULT_BROWNIAN_TIMESTEP, engines=BOTH_ENGINES, default_tolerance=0.02,
         ),
     )
 }
@@ -218,6 +249,18 @@ def resolve(integrator: str, peclet: float, timestep: float | None) -> tuple[str
     return name, float(timestep)
 
 
+def resolve_tolerance(name: str, tolerance: float | None) -> float:
+    """``run.tolerance`` resolved: the value given, or the integrator's default (in d).
+
+    An unset tolerance is :data:`DEFAULT_TOLERANCE` (1e-4 d) for the deterministic adaptive
+    integrators and the entry's ``default_tolerance`` for the adaptive Brownian one, whose
+    error estimate carries the noise displacement (``knotmm.dynamics.adaptive_brownian``).
+    """
+    if tolerance is not None:
+        return float(tolerance)
+    return _info(name).default_tolerance
+
+
 def make(
     name: str,
     timestep: float,
@@ -226,7 +269,7 @@ def make(
     seed: int | None = None,
     noise="auto",
     lanczos_tolerance: float = 1e-6,
-    tolerance: float = 1e-4,
+    tolerance: float | None = None,
     max_timestep: float = 1.0,
     min_timestep: float = 1e-7,
 ):
@@ -248,8 +291,11 @@ def make(
         Brownian integrators: how ``B xi`` is drawn (:class:`knotmm.dynamics.noise.NoiseGenerator`).
     lanczos_tolerance : float
         Brownian integrators: tolerance of the Lanczos noise.
-    tolerance, max_timestep, min_timestep : float
-        Adaptive integrators: local error per step (d), largest step and floor (tau_d).
+    tolerance : float or None
+        Adaptive integrators: local error per step, in d (``None``: the integrator's
+        default, :func:`resolve_tolerance`).
+    max_timestep, min_timestep : float
+        Adaptive integrators: largest step and floor, in tau_d.
 
     Returns
     -------
@@ -266,8 +312,13 @@ def make(
     if info.brownian:
         if not timestep > 0:
             raise ConfigError(f"run.timestep = {timestep!r}: must be > 0 (in tau_d)")
+        adaptive = {}
+        if info.adaptive:
+            adaptive = dict(tolerance=resolve_tolerance(name, tolerance),
+                            max_timestep=max_timestep, min_timestep=min_timestep)
         return cls(
-            timestep, peclet=peclet, seed=seed, noise=noise, lanczos_tolerance=lanczos_tolerance
+            timestep, peclet=peclet, seed=seed, noise=noise, lanczos_tolerance=lanczos_tolerance,
+            **adaptive,
         )
     if math.isfinite(float(peclet)):
         raise ConfigError(
@@ -278,7 +329,7 @@ def make(
         )
     try:
         if info.adaptive:
-            return cls(timestep, tolerance, max_timestep, min_timestep)
+            return cls(timestep, resolve_tolerance(name, tolerance), max_timestep, min_timestep)
         return cls(timestep)
     except ValueError as exc:
         if isinstance(exc, ConfigError):

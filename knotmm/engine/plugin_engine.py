@@ -5,17 +5,18 @@
 step bounds; ``kT = 1 / run.peclet`` in F0 d; the seed from ``run.seed``; the noise method,
 ``run.noise`` resolved for the chain's size, and ``run.lanczos_tolerance``) and hands each
 stretch up to the next report time to :meth:`PluginEngine.advance_to`, one ``stepTo`` call
-in C++. Then Python reads the positions (float64) once, updates the Simulation's time, step
-and evaluation counts and the Python integrator's counters (which the run's summary and
-observables read), and runs the Python engine's state checks (finite positions, bonds below
-``run.max_bond_length``).
+in C++. Then Python reads the positions (float64) once, updates the Simulation's time and the
+engine's counters (steps, evaluations, rejections: the plugin's since the stretch began; the
+step size is the plugin's), and runs the Python engine's state checks (finite positions,
+bonds below ``run.max_bond_length``).
 
 A fault inside a stretch is found exactly where the Python engine would find it: the stretch
 is taken again from the Context checkpoint made at its start, one accepted step at a time
 (:meth:`PluginEngine.advance_one`, the same steps as ``stepTo`` takes), with the checks
 after each, so the fault names the same time, step, bead and value, and the last good state
-is the one kept. A step-size underflow or non-finite positions in the plugin (an
-``openmm.OpenMMException``) become the Python engine's messages too.
+is the one kept. A failed plugin step raises :class:`knotmm.plugin.StepFault` (an
+``openmm.OpenMMException`` that says its ``kind``, ``bead`` and ``error_estimate``): a step-size
+underflow or non-finite positions become the Python engine's messages too.
 
 One limit of the step-by-step replay: the last step of a stretch is taken by
 ``stepTo(target)``; if error control rejects it, ``stepTo`` takes two accepted steps in that
@@ -25,30 +26,28 @@ call and a fault after the first of them is reported at the second.
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 import openmm
 from openmm import unit
 
+from knotmm.engine.base import Engine
 from knotmm.engine.openmm_state import state_array
+from knotmm.engine.schedule import landing_slack
 from knotmm.errors import SimulationFault
 
 __all__ = ["PluginEngine"]
 
-_UNDERFLOW = re.compile(r"error estimate (\S+) x tolerance")
-_NONFINITE = re.compile(r"non-finite at t = \S+ ps \(bead (\d+)\)")
 
-
-class PluginEngine:
+class PluginEngine(Engine):
     """Steps a :class:`~knotmm.engine.simulation.Simulation` with the compiled integrator.
 
     Parameters
     ----------
     integrator : knotmm.dynamics.deterministic.Integrator
         The Python integrator of the run: its settings make the plugin integrator
-        (:func:`knotmm.plugin.from_python_integrator`), and its counters (``n_accepted``,
-        ``n_rejected``) and next step (``timestep``, adaptive methods) follow the plugin's.
+        (:func:`knotmm.plugin.from_python_integrator`); it is never stepped, and its
+        counters and step size stay as they were (the engine's are the plugin's).
     threads : int
         Threads of the plugin's RPY pair loop (same trajectory).
     n_beads : int, optional
@@ -57,27 +56,44 @@ class PluginEngine:
 
     Attributes
     ----------
-    rpy : knotmm.plugin.RPYIntegrator
+    rpy, openmm_integrator : knotmm.plugin.RPYIntegrator
         The OpenMM integrator the Simulation's Context is created with.
     """
+
+    name = "plugin"
 
     def __init__(self, integrator, threads: int = 1, n_beads: int | None = None):
         from knotmm.plugin import from_python_integrator
 
-        self.mirror = integrator
+        super().__init__(integrator)
         self.rpy = from_python_integrator(integrator, threads=threads, n_beads=n_beads)
+        self.openmm_integrator = self.rpy
         self.adaptive = bool(getattr(integrator, "adaptive", False))
+        self._rejected = 0
 
-    def stiffness(self, sim, rkc2) -> float:
+    # -- counters -----------------------------------------------------------------------
+    @property
+    def n_rejected(self) -> int:
+        return self._rejected
+
+    @property
+    def timestep(self) -> float:
+        """The plugin's next step (adaptive methods), else the integrator's fixed step."""
+        return self._step_size() if self.adaptive else self.integrator.timestep
+
+    def stiffness(self, sim) -> float:
         """The plugin rkc2's spectral-radius estimate at ``sim``'s positions, in 1/tau_d.
 
-        A throwaway Context with a plugin copy of ``rkc2`` (a
-        :class:`knotmm.dynamics.deterministic.RKC2`) takes one step from the positions; the
-        estimate is made at the step's start (a rejected try makes it again there).
+        A throwaway Context with a plugin copy of a
+        :class:`knotmm.dynamics.deterministic.RKC2` (the run's first step) takes one step
+        from the positions; the estimate is made at the step's start (a rejected try makes
+        it again there). No numba kernel is loaded.
         """
+        from knotmm.dynamics.deterministic import RKC2
         from knotmm.plugin import from_python_integrator
 
-        probe = from_python_integrator(rkc2, threads=self.rpy.getNumThreads())
+        probe = from_python_integrator(RKC2(self.integrator.timestep),
+                                       threads=self.rpy.getNumThreads())
         context = openmm.Context(sim.system, probe, sim.context.getPlatform())
         context.setPositions(sim.context.getState(getPositions=True).getPositions())
         probe.step(1)
@@ -98,18 +114,16 @@ class PluginEngine:
         out = state_array(state, "positions", sim.system.getNumParticles())
         return out[: sim.n_beads].copy(), state.getTime().value_in_unit(unit.picosecond)
 
-    def _count(self, sim, before, steps: bool = True) -> None:
-        """Add the plugin's counts since ``before`` to the Simulation and the mirror."""
+    def _count(self, before, steps: bool = True) -> None:
+        """Add the plugin's counts since ``before`` to the engine's."""
         accepted, evaluations, rejected = self._counts()
-        sim.n_evaluations += evaluations - before[1]
-        self.mirror.n_rejected += rejected - before[2]
+        self.n_evaluations += evaluations - before[1]
+        self._rejected += rejected - before[2]
         if steps:
-            sim.currentStep += accepted - before[0]
-            self.mirror.n_accepted += accepted - before[0]
-        if self.adaptive:
-            self.mirror.timestep = self._step_size()
+            self.n_accepted += accepted - before[0]
 
-    def _fine(self, sim, y: np.ndarray) -> bool:
+    @staticmethod
+    def _fine(sim, y: np.ndarray) -> bool:
         return bool(np.all(np.isfinite(y))
                     and np.max(sim.bond_lengths(y)) <= sim.max_bond_length)
 
@@ -123,7 +137,7 @@ class PluginEngine:
             As the Python engine would, at the first bad step (found by replaying the
             stretch); ``sim`` then holds the last good state.
         """
-        sim._sync_context()  # reporters may have moved the Context's positions
+        sim.sync_context()  # reporters may have moved the Context's positions
         start = sim.context.createCheckpoint()
         before = self._counts()
         try:
@@ -136,25 +150,21 @@ class PluginEngine:
         if fine:
             sim.positions = y
             sim.time = t
-            self._count(sim, before)
+            self._count(before)
             return
         sim.context.loadCheckpoint(start)  # the counters go back with it
-        while sim.time < target - _slack(target):
+        while sim.time < target - landing_slack(target):
             self.advance_one(sim, target)
 
     def advance_one(self, sim, target: float) -> float:
-        """One accepted step of at most ``target - sim.time`` (what ``stepTo`` would take).
+        """One accepted step of at most ``target - sim.time`` (what ``stepTo`` would take)."""
+        from knotmm.plugin import StepFault
 
-        Returns
-        -------
-        float
-            The step taken, in tau_d.
-        """
-        sim._sync_context()  # reporters may have moved the Context's positions
+        sim.sync_context()  # reporters may have moved the Context's positions
         remaining = target - sim.time
         before = self._counts()
         h = self._step_size()
-        landing = math.isfinite(target) and not sim.time + h < target - _slack(target)
+        landing = math.isfinite(target) and not sim.time + h < target - landing_slack(target)
         last_good = sim.context.createCheckpoint()
         try:
             if landing:
@@ -162,36 +172,39 @@ class PluginEngine:
             else:
                 self.rpy.step(1)  # not clipped by the target: the same step stepTo takes
         except openmm.OpenMMException as exc:
-            self._count(sim, before, steps=False)  # the plugin kept the last good state
-            raise self._fault(sim, str(exc), min(h, remaining)) from None
+            self._count(before, steps=False)  # the plugin kept the last good state
+            fault = exc if isinstance(exc, StepFault) else None
+            raise self._fault(sim, fault, str(exc), min(h, remaining)) from None
         y, t = self._read(sim)
         try:
-            sim._check_state(y, dt=t - sim.time)
+            sim.check_state(y, dt=t - sim.time)
         except SimulationFault:
-            self._count(sim, before, steps=False)
+            self._count(before, steps=False)
             sim.context.loadCheckpoint(last_good)
             raise
         dt = t - sim.time
         sim.positions = y
         sim.time = t
-        self._count(sim, before)
+        self._count(before)
         return dt
 
-    def _fault(self, sim, message: str, h: float) -> SimulationFault:
-        """The Python engine's fault for an exception of the plugin's step."""
-        underflow = _UNDERFLOW.search(message)
-        if underflow and self.adaptive:
-            err = float(underflow.group(1))
-            reason = f"{self.mirror.name} error estimate {err:.3g} x tolerance"
-            return sim._underflow_fault(self._step_size(), reason)
-        nonfinite = _NONFINITE.search(message)
-        if nonfinite:
+    def _fault(self, sim, fault, message: str, h: float) -> SimulationFault:
+        """The Python engine's fault for a failed plugin step.
+
+        ``fault`` is the :class:`knotmm.plugin.StepFault` (``None`` for another
+        ``openmm.OpenMMException``), ``message`` its text, ``h`` the step tried (tau_d).
+        """
+        kind = None if fault is None else fault.kind
+        if kind == "step_underflow" and self.adaptive:
+            reason = f"{self.integrator.name} error estimate {fault.error_estimate:.3g} x tolerance"
+            return sim.underflow_fault(self._step_size(), reason)
+        if kind == "non_finite" and 0 <= fault.bead < sim.n_beads:
             y = sim.positions.copy()
-            y[int(nonfinite.group(1))] = math.nan
+            y[fault.bead] = math.nan
             try:
-                sim._check_state(y, dt=h)
-            except SimulationFault as fault:
-                return fault
+                sim.check_state(y, dt=h)
+            except SimulationFault as found:
+                return found
         return SimulationFault(
             f"the plugin's step failed at t = {sim.time:.6g} tau_d (step {sim.currentStep}; "
             f"this last good state is kept): {' '.join(message.split())}. Hint: "
@@ -199,27 +212,48 @@ class PluginEngine:
         )
 
     # -- energies -----------------------------------------------------------------------
-    def group_energies(self, groups) -> list[float]:
-        """Energy of each force group at the Context's positions, in F0 d (one C++ call).
+    def group_energies(self, sim, positions: np.ndarray | None = None) -> dict[str, float]:
+        """Energy of each force group, in F0 d; at ``sim``'s positions in one C++ call.
 
-        Evaluated as the steps evaluate forces, with the beads shifted to their centre of
-        mass (:meth:`knotmm.plugin.RPYIntegrator.getGroupEnergies`): an external field's
-        energy (gravity) is the shifted one. The Context and the integrator's state are left
-        as they were, so the run goes on bit for bit as without the call.
+        Without ``positions``, :meth:`knotmm.plugin.RPYIntegrator.getGroupEnergies`
+        evaluates every group at the Context's positions (a translate of ``sim``'s), with
+        the beads shifted to their centre of mass as the steps evaluate forces: no
+        ``setPositions``, one evaluation per group. The Context and the integrator's state
+        are left as they were, so the run goes on bit for bit as without the call. With
+        ``positions``: :meth:`Engine.group_energies`.
         """
-        return list(self.rpy.getGroupEnergies(list(groups)))
+        if positions is not None:
+            return super().group_energies(sim, positions)
+        from knotmm.model.forces import FORCE_GROUPS
+
+        if not sim.context_current:
+            sim.sync_context()
+        energies = self.rpy.getGroupEnergies(list(FORCE_GROUPS.values()))
+        return dict(zip(FORCE_GROUPS, energies, strict=True))
 
     # -- checkpoints --------------------------------------------------------------------
-    def checkpoint(self, sim) -> bytes:
-        """The Context's checkpoint (positions, time, integrator and noise state)."""
-        sim._sync_context()  # reporters may have moved the Context's positions
-        return sim.context.createCheckpoint()
+    def checkpoint(self, sim) -> dict:
+        """Counters and the Context's checkpoint (``Context.createCheckpoint``: positions,
+        time, the plugin's step size, counters, cached velocity and noise stream).
 
-    @staticmethod
-    def restore(sim, blob: bytes) -> None:
-        sim.context.loadCheckpoint(blob)
+        ``integrator_state`` is the Python integrator's, with the engine's step size and
+        counts (as the files written before the engine interface hold it).
+        """
+        sim.sync_context()  # reporters may have moved the Context's positions
+        state = self.integrator.get_state()
+        state.update(timestep=self.timestep, n_accepted=self.n_accepted,
+                     n_rejected=self.n_rejected)
+        return {
+            "step": self.n_accepted,
+            "evaluations": self.n_evaluations,
+            "integrator": self.integrator.name,
+            "integrator_state": state,
+            "velocity": None,
+            "engine": self.name,
+            "openmm_checkpoint": sim.context.createCheckpoint(),
+        }
 
-
-def _slack(t: float) -> float:
-    """The landing tolerance of ``stepTo`` and of the Python engine: relative 1e-9."""
-    return 1e-9 * max(1.0, abs(t))
+    def restore(self, sim, state: dict) -> None:
+        sim.context.loadCheckpoint(state["openmm_checkpoint"])
+        self._rejected = int(state["integrator_state"].get("n_rejected", 0))
+        self._restore_counters(state)

@@ -21,7 +21,7 @@ import numpy as np
 import openmm.app
 
 from knotmm.engine.schedule import TimeScheduled
-from knotmm.io.observables import OBSERVABLE_COLUMNS
+from knotmm.io.observables import ENERGY_TERMS, OBSERVABLE_COLUMNS
 
 __all__ = [
     "DCDReporter",
@@ -129,18 +129,14 @@ class ObservablesReporter(_FileReporter):
         pos = simulation.positions
         com = pos.mean(axis=0)
         energies = simulation.energies()
-        timestep = getattr(simulation.integrator, "timestep", math.nan)
+        timestep = getattr(simulation, "timestep", math.nan)
         row = [
             f"{simulation.time:.10g}",
             simulation.currentStep,
             f"{com[0]:.10g}",
             f"{com[1]:.10g}",
             f"{com[2]:.10g}",
-            f"{energies['bond']:.10g}",
-            f"{energies['bend']:.10g}",
-            f"{energies['steric']:.10g}",
-            f"{energies['gravity']:.10g}",
-            f"{energies['total']:.10g}",
+            *(f"{energies[term]:.10g}" for term in ENERGY_TERMS),
             f"{float(np.max(simulation.bond_lengths())):.10g}",
             f"{timestep:.6g}",
             simulation.n_evaluations,

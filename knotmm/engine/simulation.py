@@ -20,6 +20,11 @@ steps. The loop, in the style of HOOMD-blue's ``Simulation.run``::
 whole state (positions, time, step, counters, integrator and random state), so that a run
 goes on bit for bit after a stop (``docs/architecture.md``).
 
+Who takes the steps is the Simulation's engine (:class:`knotmm.engine.base.Engine`: the
+Python integrators or the compiled plugin, :func:`knotmm.engine.engines.make_engine`); the
+Simulation asks it to advance, for energies, the stiffness, its checkpoint entries and its
+counters, and never asks which one it is.
+
 One "step" is one accepted step of the integrator, whatever its length. Positions are
 float64 and live in :attr:`Simulation.positions`; the Context only sees them, shifted by
 their centre of mass, when forces are needed (translation does not change the forces, and
@@ -35,11 +40,12 @@ import numpy as np
 import openmm
 from openmm import unit
 
-from knotmm.dynamics.deterministic import RK23, Integrator, StepSizeUnderflow
+from knotmm.dynamics.deterministic import RK23, Integrator
 from knotmm.engine.checkpoint import read_checkpoint, write_checkpoint
-from knotmm.engine.engines import PLUGIN, PYTHON, resolve_engine
+from knotmm.engine.engines import PYTHON, make_engine, resolve_engine
 from knotmm.engine.interrupt import raise_if_requested
 from knotmm.engine.openmm_state import state_array
+from knotmm.engine.schedule import landing_slack
 from knotmm.errors import ConfigError, SimulationFault, TrajectoryFileError
 from knotmm.model.system import FORCE_GROUPS, ChainModel, chain_system, site_positions
 from knotmm.model.topology import bead_topology, ring_bonds
@@ -114,8 +120,19 @@ class Simulation:
         Accepted integrator steps so far (OpenMM's name, so OpenMM reporters work).
     n_evaluations : int
         Velocity (force + mobility) evaluations so far.
+    n_rejected : int
+        Steps rejected by error control so far (adaptive integrators).
+    timestep : float
+        The next step to try (adaptive) or the fixed step, in tau_d.
     engine : str
         ``"python"`` or ``"plugin"``.
+    integrator : knotmm.dynamics.deterministic.Integrator
+        The run's integrator: its method and settings (the Python engine steps it; the
+        plugin engine copies it, and its own counters stay unused: read the ones above).
+    openmm_integrator : openmm.Integrator
+        The integrator of :attr:`context` (the plugin engine's
+        :class:`knotmm.plugin.RPYIntegrator`; for the Python engine a never-stepped
+        ``VerletIntegrator`` holding the step size).
     """
 
     def __init__(
@@ -136,35 +153,52 @@ class Simulation:
         self.topology = bead_topology(pos.shape[0])
         self.integrator = RK23(0.01) if integrator is None else integrator
         plat, props = select_platform(platform, pos.shape[0], threads)
-        if engine not in (PYTHON, PLUGIN):
-            raise ConfigError(f"engine = {engine!r}: expected {PYTHON!r} or {PLUGIN!r}")
-        self.engine = engine
-        self._plugin = None
-        if engine == PLUGIN:
-            from knotmm.engine.plugin_engine import PluginEngine
-
-            self._plugin = PluginEngine(self.integrator, threads=self.mobility_threads,
-                                        n_beads=pos.shape[0])
-            self._openmm_integrator = self._plugin.rpy
-        else:
-            # The OpenMM integrator is never stepped: knotmm integrates. It holds the step
-            # size that OpenMM reporters may read.
-            self._openmm_integrator = openmm.VerletIntegrator(self.integrator.timestep)
-        self.context = openmm.Context(self.system, self._openmm_integrator, plat, props)
+        self._engine = make_engine(engine, self.integrator, threads=self.mobility_threads,
+                                   n_beads=pos.shape[0])
+        self.openmm_integrator = self._engine.openmm_integrator
+        self.context = openmm.Context(self.system, self.openmm_integrator, plat, props)
         self.platform_name = plat.getName()
         self.positions = pos
         self.n_beads = pos.shape[0]
         self.bonds = ring_bonds(self.n_beads)
         self.max_bond_length = float(max_bond_length)
         self.time = 0.0
-        self.currentStep = 0
-        self.n_evaluations = 0
         self.reporters: list = []
         self.last_velocity: np.ndarray | None = None
-        self._held_stale = False
         self._context_current = False  # the Context holds a translate of `positions`
-        self._check_state(self.positions, initial=True)
-        self._sync_context()
+        self.check_state(self.positions, initial=True)
+        self.sync_context()
+
+    # -- the engine's state -------------------------------------------------------------
+    @property
+    def engine(self) -> str:
+        """The engine that takes the steps: ``"python"`` or ``"plugin"``."""
+        return self._engine.name
+
+    @property
+    def currentStep(self) -> int:  # noqa: N802 - OpenMM's name
+        """Accepted integrator steps so far (settable, as OpenMM's ``Simulation``'s)."""
+        return self._engine.n_accepted
+
+    @currentStep.setter
+    def currentStep(self, value: int) -> None:  # noqa: N802
+        self._engine.n_accepted = int(value)
+
+    @property
+    def n_evaluations(self) -> int:
+        """Velocity (force + mobility) evaluations so far, the engine's and
+        :meth:`velocity`'s."""
+        return self._engine.n_evaluations
+
+    @property
+    def n_rejected(self) -> int:
+        """Steps rejected by error control so far (adaptive integrators; 0 otherwise)."""
+        return self._engine.n_rejected
+
+    @property
+    def timestep(self) -> float:
+        """The next step the engine tries (adaptive) or its fixed step, in tau_d."""
+        return self._engine.timestep
 
     @classmethod
     def from_config(cls, cfg, positions=None, engine: str | None = None) -> Simulation:
@@ -214,25 +248,19 @@ class Simulation:
     def saveCheckpoint(self, path, extra: dict | None = None) -> None:  # noqa: N802
         """Save the whole state to ``path`` atomically (:mod:`knotmm.engine.checkpoint`).
 
-        The file holds positions, time, step, velocity evaluations, the integrator's name
-        and state (step size, controller memory, random state) and the velocity it holds
-        for the current positions, if any. ``extra`` (a dict of JSON values: a run's output
-        counters, ...) rides along and is returned by :meth:`loadCheckpoint`. The plugin
-        engine adds its name and the Context's checkpoint (``Context.createCheckpoint``:
-        the plugin's step size, counters, cached velocity and noise stream).
+        The file holds positions and time, and the engine's entries
+        (:meth:`knotmm.engine.base.Engine.checkpoint`): step, velocity evaluations, the
+        integrator's name and state (step size, controller memory, random state) and the
+        velocity it holds for the current positions, if any; the plugin engine adds its
+        name and the Context's checkpoint (``Context.createCheckpoint``: the plugin's step
+        size, counters, cached velocity and noise stream). ``extra`` (a dict of JSON values:
+        a run's output counters, ...) rides along and is returned by :meth:`loadCheckpoint`.
         """
-        plugin = {} if self._plugin is None else {
-            "engine": self.engine, "openmm_checkpoint": self._plugin.checkpoint(self)}
         write_checkpoint(path, {
             "positions": self.positions,
             "time": self.time,
-            "step": self.currentStep,
-            "evaluations": self.n_evaluations,
-            "integrator": self.integrator.name,
-            "integrator_state": self.integrator.get_state(),
             "counters": extra or {},
-            "velocity": self._held_velocity(),
-            **plugin,
+            **self._engine.checkpoint(self),
         })
 
     def loadCheckpoint(self, path) -> dict:  # noqa: N802
@@ -265,24 +293,12 @@ class Simulation:
                 f"checkpoint {str(path)!r} holds {state['positions'].shape[0]} beads, this "
                 f"simulation has {self.n_beads}; the files do not belong together"
             )
-        self._check_state(state["positions"], initial=True)
+        self.check_state(state["positions"], initial=True)
         self.positions = state["positions"]
-        self.integrator.set_state(state["integrator_state"])  # forgets a held velocity
-        if state["velocity"] is not None and hasattr(self.integrator, "_f0"):
-            self.integrator._f0 = state["velocity"]
-        self._held_stale = False
         self.time = state["time"]
-        self.currentStep = state["step"]
-        self.n_evaluations = state["evaluations"]
-        if self._plugin is not None:
-            self._plugin.restore(self, state["openmm_checkpoint"])
-        self._sync_context()
+        self._engine.restore(self, state)
+        self.sync_context()
         return state["counters"]
-
-    def _held_velocity(self) -> np.ndarray | None:
-        """The velocity at the current positions an FSAL integrator (rk23, rkc2) reuses."""
-        held = getattr(self.integrator, "_f0", None)
-        return None if held is None or self._held_stale else np.asarray(held)
 
     # -- physics ------------------------------------------------------------------------
     def forces(self, positions: np.ndarray) -> np.ndarray:
@@ -302,7 +318,7 @@ class Simulation:
         # imported here: a plugin-engine run never loads numba's kernels (about a second)
         from knotmm.dynamics.mobility import rpy_velocities
 
-        self.n_evaluations += 1
+        self._engine.n_evaluations += 1
         return rpy_velocities(positions, self.forces(positions), threads=self.mobility_threads)
 
     def stiffness(self) -> float:
@@ -310,48 +326,38 @@ class Simulation:
 
         RKC's estimate (:meth:`knotmm.dynamics.deterministic.RKC2.spectral_radius`: a power
         iteration by finite differences, times 1.2; with the plugin engine, the plugin's
-        rkc2 makes the same estimate). Its evaluations are not counted in
-        :attr:`n_evaluations`.
+        rkc2 makes the same estimate: :meth:`knotmm.engine.base.Engine.stiffness`). Its
+        evaluations are not counted in :attr:`n_evaluations`.
         """
-        from knotmm.dynamics.deterministic import RKC2
-
-        if self._plugin is not None:  # the plugin's own estimate: no numba kernel to load
-            return self._plugin.stiffness(self, RKC2(self.integrator.timestep))
-        counted = self.n_evaluations
-        try:
-            return RKC2(self.integrator.timestep).spectral_radius(
-                self.velocity, self.positions, self.velocity(self.positions))
-        finally:
-            self.n_evaluations = counted
+        return self._engine.stiffness(self)
 
     def energies(self, positions: np.ndarray | None = None) -> dict[str, float]:
         """Energy of each term (``bond``, ``bend``, ``steric``, ``gravity``) and ``total``.
 
         In F0 d; gravity is ``g sum z`` with the true (unshifted) heights. Each term is
-        evaluated at the positions shifted to their centre of mass, as forces are. With the
-        plugin engine and no ``positions``, one call
-        (:meth:`knotmm.engine.plugin_engine.PluginEngine.group_energies`) evaluates the four
-        groups at the Context's positions, which are these; otherwise one ``getState`` per
-        group.
+        evaluated at the positions shifted to their centre of mass, as forces are, by the
+        engine (:meth:`knotmm.engine.base.Engine.group_energies`: one ``getState`` per
+        group, or with the plugin engine and no ``positions`` one C++ call).
         """
         pos = self.positions if positions is None else positions
-        shift = pos.mean(axis=0)
-        if self._plugin is not None and positions is None:
-            # One C++ call at the Context's positions (a translate of these), shifted there
-            # to their centre of mass as below: no setPositions, one evaluation per group.
-            if not self._context_current:
-                self._sync_context()
-            out = dict(zip(FORCE_GROUPS, self._plugin.group_energies(FORCE_GROUPS.values()),
-                           strict=True))
-        else:
-            self.context.setPositions(site_positions(pos - shift, self.model))
-            self._context_current = False
-            out = {}
-            for name, group in FORCE_GROUPS.items():
-                state = self.context.getState(getEnergy=True, groups={group})
-                out[name] = state.getPotentialEnergy().value_in_unit(unit.kilojoule_per_mole)
-        out["gravity"] += self.model.gravity * shift[2] * self.n_beads
+        out = self._engine.group_energies(self, positions)
+        out["gravity"] += self.model.gravity * pos.mean(axis=0)[2] * self.n_beads
         out["total"] = sum(out.values())
+        return out
+
+    def context_energies(self, shifted: np.ndarray) -> dict[str, float]:
+        """Energy of each term of :data:`FORCE_GROUPS` at ``shifted``, in F0 d.
+
+        One ``getState`` per force group, with the Context's positions set to ``shifted``
+        (shape (n_beads, 3), in d; virtual sites placed from them); the Context then no
+        longer holds the run's positions (the next step or report puts them back).
+        """
+        self.context.setPositions(site_positions(shifted, self.model))
+        self._context_current = False
+        out = {}
+        for name, group in FORCE_GROUPS.items():
+            state = self.context.getState(getEnergy=True, groups={group})
+            out[name] = state.getPotentialEnergy().value_in_unit(unit.kilojoule_per_mole)
         return out
 
     def bond_lengths(self, positions: np.ndarray | None = None) -> np.ndarray:
@@ -359,9 +365,21 @@ class Simulation:
         pos = self.positions if positions is None else positions
         return np.linalg.norm(pos[self.bonds[:, 1]] - pos[self.bonds[:, 0]], axis=1)
 
-    # -- state checks ---------------------------------------------------------------------
-    def _check_state(self, y: np.ndarray, initial: bool = False, dt: float = 0.0) -> None:
-        """Raise SimulationFault if ``y`` (the state ``dt`` after the current one) is bad."""
+    # -- state checks (the engines' hooks) --------------------------------------------------
+    def check_state(self, y: np.ndarray, initial: bool = False, dt: float = 0.0) -> None:
+        """Raise :class:`SimulationFault` if ``y`` (the state ``dt`` after the current one) is bad.
+
+        Bad: a non-finite position, or a bond longer than :attr:`max_bond_length`. The
+        message names the time and step of the bad state and the last good one (kept).
+
+        Parameters
+        ----------
+        y : ndarray, shape (n_beads, 3), in d
+        initial : bool
+            ``y`` is a starting state (positions given, or a checkpoint's).
+        dt : float
+            How far after :attr:`time` ``y`` is, in tau_d.
+        """
         where = "the starting positions" if initial else (
             f"t = {self.time + dt:.6g} tau_d (step {self.currentStep + 1}; the last good state, "
             f"at t = {self.time:.6g} tau_d, is kept)"
@@ -383,15 +401,22 @@ class Simulation:
                 f"(lower run.tolerance or run.timestep), or the template overlaps itself"
             )
 
-    def _sync_context(self) -> None:
+    def sync_context(self) -> None:
         """Put the current positions, step count and time into the Context (for reporters)."""
         self.context.setPositions(site_positions(self.positions, self.model))
         self.context.setTime(self.time)
         self.context.setStepCount(self.currentStep)
         self._context_current = True
 
+    @property
+    def context_current(self) -> bool:
+        """True while the Context holds the current positions (as :meth:`sync_context`
+        left them; a translate of them after an engine's steps)."""
+        return self._context_current
+
     # -- stepping ---------------------------------------------------------------------------
-    def _underflow_fault(self, timestep: float, reason: str) -> SimulationFault:
+    def underflow_fault(self, timestep: float, reason: str) -> SimulationFault:
+        """The fault of an adaptive step that fell to ``timestep`` (tau_d) for ``reason``."""
         return SimulationFault(
             f"the adaptive step fell to {timestep:.3g} tau_d (below run.min_timestep) "
             f"at t = {self.time:.6g} tau_d (step {self.currentStep}): {reason}. "
@@ -399,32 +424,14 @@ class Simulation:
             f"state is kept"
         )
 
-    def _advance(self, max_dt: float) -> float:
-        if self._plugin is not None:
-            return self._plugin.advance_one(self, self.time + max_dt)
-        try:
-            y_new, dt = self.integrator.step(self.velocity, self.positions, max_dt)
-        except StepSizeUnderflow as exc:
-            raise self._underflow_fault(exc.timestep, exc.reason) from None
-        try:
-            self._check_state(y_new, dt=dt)
-        except SimulationFault:
-            self._held_stale = True  # the integrator holds the velocity of the bad state
-            raise
-        self.positions = y_new
-        self.time += dt
-        self.currentStep += 1
-        return dt
-
     def set_positions(self, positions) -> None:
         """Replace the positions (forgetting the integrator's cached velocity)."""
         pos = np.array(positions, dtype=np.float64)
         if pos.shape != self.positions.shape:
             raise ConfigError(f"positions: expected shape {self.positions.shape}, got {pos.shape}")
-        self._check_state(pos, initial=True)
+        self.check_state(pos, initial=True)
         self.positions = pos
-        self.integrator.reset()
-        self._held_stale = False
+        self._engine.reset(self)
 
     def step(self, steps: int) -> None:
         """Take ``steps`` accepted integrator steps (OpenMM's meaning of ``step``)."""
@@ -451,11 +458,11 @@ class Simulation:
                 self._simulate_loop(end_step, end_time, write_at_start)
         except BaseException:
             try:  # the Context follows the last whole step; the error that stopped us wins
-                self._sync_context()
+                self.sync_context()
             except Exception:  # noqa: BLE001
                 pass
             raise
-        self._sync_context()
+        self.sync_context()
 
     def _simulate_loop(self, end_step, end_time, write_at_start):
         end_step = math.inf if end_step is None else end_step
@@ -463,16 +470,16 @@ class Simulation:
         if write_at_start:
             due = [r for r in self.reporters
                    if hasattr(r, "next_report_time")
-                   and r.next_report_time(self) <= self.time + _slack(self.time)]
+                   and r.next_report_time(self) <= self.time + landing_slack(self.time)]
             self._report(due)
-        while self.currentStep < end_step and self.time < end_time - _slack(end_time):
+        while self.currentStep < end_step and self.time < end_time - landing_slack(end_time):
             step_target = end_step
             time_target = end_time
             due_step = {}
             for r in self.reporters:
                 if hasattr(r, "next_report_time"):
                     t_next = r.next_report_time(self)
-                    if t_next > self.time + _slack(self.time):
+                    if t_next > self.time + landing_slack(self.time):
                         time_target = min(time_target, t_next)
                 else:
                     desc = r.describeNextReport(self)
@@ -482,22 +489,22 @@ class Simulation:
                         step_target = min(step_target, self.currentStep + steps)
             while self.currentStep < step_target:
                 remaining = time_target - self.time
-                if remaining <= _slack(time_target):
+                if remaining <= landing_slack(time_target):
                     break
                 # Here every report due at the current time has been made: a stop asked
                 # for by a signal (knotmm.engine.interrupt) leaves a whole state to checkpoint.
                 raise_if_requested()
-                if self._plugin is not None and step_target == math.inf:
-                    self._plugin.advance_to(self, time_target)  # every step to the report
+                if step_target == math.inf:
+                    self._engine.advance_to(self, time_target)  # every step to the report
                 else:
-                    self._advance(remaining)
-                if abs(time_target - self.time) <= _slack(time_target):
+                    self._engine.advance_one(self, time_target)
+                if abs(time_target - self.time) <= landing_slack(time_target):
                     self.time = time_target
                     break
             due = []
             for r in self.reporters:
                 if hasattr(r, "next_report_time"):
-                    if r.next_report_time(self) <= self.time + _slack(self.time):
+                    if r.next_report_time(self) <= self.time + landing_slack(self.time):
                         due.append(r)
                 elif due_step.get(id(r)) == self.currentStep:
                     due.append(r)
@@ -506,7 +513,7 @@ class Simulation:
     def _report(self, reporters) -> None:
         if not reporters:
             return
-        self._sync_context()
+        self.sync_context()
         openmm_style = [r for r in reporters if not hasattr(r, "next_report_time")]
         state = None
         if openmm_style:
@@ -528,8 +535,3 @@ class Simulation:
             )
         for r in reporters:
             r.report(self, state)
-
-
-def _slack(t: float) -> float:
-    """Time tolerance for "has this report time come": relative 1e-9, none at infinity."""
-    return 1e-9 * max(1.0, abs(t)) if math.isfinite(t) else 0.0

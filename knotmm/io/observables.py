@@ -10,21 +10,25 @@ import os
 from pathlib import Path
 
 from knotmm.errors import TrajectoryFileError
+from knotmm.model.forces import FORCE_GROUPS
 
-__all__ = ["OBSERVABLE_COLUMNS", "truncate_csv"]
+__all__ = ["ENERGY_TERMS", "OBSERVABLE_COLUMNS", "truncate_csv"]
 
-#: Columns of ``observables.csv`` (times in tau_d, lengths in d, energies in F0 d).
-OBSERVABLE_COLUMNS = (
+#: The energy terms of a row, then their sum ``"total"``: the model's force groups
+#: (:data:`knotmm.model.forces.FORCE_GROUPS`: bond, bend, steric, gravity).
+ENERGY_TERMS: tuple[str, ...] = (*FORCE_GROUPS, "total")
+
+#: Columns of ``observables.csv`` (times in tau_d, lengths in d, energies in F0 d): time,
+#: step, com_x, com_y, com_z, e_bond, e_bend, e_steric, e_gravity, e_total, max_bond,
+#: timestep, evaluations. Files already written read by these names: a new force group adds
+#: a column before ``e_total``.
+OBSERVABLE_COLUMNS: tuple[str, ...] = (
     "time",
     "step",
     "com_x",
     "com_y",
     "com_z",
-    "e_bond",
-    "e_bend",
-    "e_steric",
-    "e_gravity",
-    "e_total",
+    *(f"e_{term}" for term in ENERGY_TERMS),
     "max_bond",
     "timestep",
     "evaluations",

@@ -32,7 +32,15 @@ forces to the beads.
 The compiled module may be missing (a source checkout that was never built): importing this
 package never fails; :func:`available` says whether the plugin loaded and :func:`load_error`
 why not, so callers can fall back to the Python engine. The environment variable
-``KNOTMM_NO_PLUGIN=1`` makes it unavailable on purpose (to test or compare the fallback).
+``KNOTMM_NO_PLUGIN=1`` makes it unavailable on purpose (to test or compare the fallback). A
+plugin compiled against another OpenMM (major.minor) than the one imported, or from older
+sources than these files, is not used either, and :func:`rebuild_needed` says so (every
+``knotmm run`` then names it, with :data:`REBUILD_COMMAND`).
+
+The plugin's own tables are the owners of what it has: :data:`METHODS` is built from its
+C++ method table (``rpyplugin.methodTable()``), and a failed step raises
+:class:`StepFault` (``rpyplugin.StepFault``, an ``openmm.OpenMMException`` with the fault's
+``kind``, ``method``, ``time``, ``bead`` and ``error_estimate``).
 
 Noise (``noise``, ``setNoiseMethod``): ``"cholesky"`` (the default) takes ``B`` as the lower
 Cholesky factor of the dense mobility; ``"lanczos"`` computes ``mu^(1/2) xi`` by the Krylov
@@ -54,6 +62,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+import math
 import os
 import sys
 from pathlib import Path
@@ -68,29 +77,28 @@ __all__ = [
     "load_error",
     "from_python_integrator",
     "METHODS",
+    "REBUILD_COMMAND",
+    "StepFault",
     "noise_settings",
+    "rebuild_needed",
     "use_lapack_cholesky",
 ]
 
 log = logging.getLogger(__name__)
 
-#: Method name -> (order, adaptive, stochastic).
-METHODS = {
-    "euler": (1, False, False),
-    "heun": (2, False, False),
-    "midpoint": (2, False, False),
-    "rk23": (3, True, False),
-    "rkc2": (2, True, False),
-    "euler_maruyama": (1, False, True),
-    "ito_heun": (1, False, True),
-    "leimkuhler_matthews": (1, False, True),
-}
+#: Method name -> (order, adaptive, stochastic), in the plugin's order: the compiled plugin's
+#: own table (``rpyplugin.methodTable()``); empty when the plugin is unavailable. The
+#: registry (:mod:`knotmm.dynamics.registry`, ``IntegratorInfo.engines``) says which methods
+#: have a plugin counterpart; ``tests/plugin/test_plugin_contract.py`` holds the two together.
+METHODS: dict[str, tuple[int, bool, bool]] = {}
+
+#: The command that rebuilds the plugin against the OpenMM that is installed.
+REBUILD_COMMAND = ("pip install -e . --no-build-isolation in the knotmm checkout "
+                   "(an installed copy: pip install --force-reinstall --no-deps knotmm)")
 
 
 class PluginUnavailableError(ImportError):
     """The compiled plugin is not built or could not be loaded (see :func:`load_error`)."""
-
-
 
 
 def _installed_build() -> list[str]:
@@ -115,34 +123,77 @@ def _installed_build() -> list[str]:
 __path__.extend(_installed_build())  # noqa: F821 - a package's own __path__
 
 _load_error: str | None = None
-try:
-    if os.environ.get("KNOTMM_NO_PLUGIN", "") not in ("", "0"):
-        raise ImportError("switched off by the environment variable KNOTMM_NO_PLUGIN")
-    _rpy = importlib.import_module(".rpyplugin", __name__)
-except ImportError as exc:  # not built, or libOpenMM.so / ABI mismatch
-    _rpy = None
-    _load_error = (
-        f"knotmm.plugin: the compiled RPY plugin could not be loaded ({exc}). Build it with "
-        f"`pip install .` (or see plugin/README.md); the Python engine still works"
-    )
-    log.debug(_load_error)
+_rebuild_needed = False  # built, but not usable as it is
+_switch = os.environ.get("KNOTMM_NO_PLUGIN", "")
+_rpy = None
+if _switch not in ("", "0"):
+    _load_error = (f"knotmm.plugin: switched off by the environment variable "
+                   f"KNOTMM_NO_PLUGIN={_switch} (unset it to use the compiled plugin)")
 else:
+    try:
+        _rpy = importlib.import_module(".rpyplugin", __name__)
+    except ImportError as exc:  # not built, or libOpenMM.so / ABI mismatch
+        _rebuild_needed = not isinstance(exc, ModuleNotFoundError)  # built, but broken
+        _load_error = (
+            f"knotmm.plugin: the compiled RPY plugin could not be loaded ({exc}). Build it "
+            f"with `pip install .` (or see plugin/README.md); the Python engine still works"
+        )
+        log.debug(_load_error)
+if _rpy is not None:
     _built = _rpy.builtAgainstOpenMMVersion()
     _running = openmm.version.version
     if _built.split(".")[:2] != _running.split(".")[:2]:
         # C++ classes (Integrator, ContextImpl) may differ in layout: do not touch them
         _load_error = (
             f"knotmm.plugin: compiled against OpenMM {_built} but OpenMM {_running} is "
-            f"installed; rebuild knotmm (pip install --force-reinstall --no-deps knotmm, or "
-            f"pip install -e . --no-build-isolation in a checkout)"
+            f"installed; rebuild it: {REBUILD_COMMAND}"
         )
-        _rpy = None
+        _rpy, _rebuild_needed = None, True
+    elif not all(hasattr(_rpy, name) for name in ("methodTable", "StepFault")):
+        _load_error = (
+            "knotmm.plugin: the compiled plugin is older than knotmm's Python files (no "
+            f"methodTable or StepFault); rebuild it: {REBUILD_COMMAND}"
+        )
+        _rpy, _rebuild_needed = None, True
 if _rpy is not None:
     try:
         _rpy.registerRPYKernelFactories()
     except Exception as exc:  # noqa: BLE001 - any failure means: not usable
         _load_error = f"knotmm.plugin: registering the RPY kernels failed: {exc}"
-        _rpy = None
+        _rpy, _rebuild_needed = None, True
+if _rpy is not None:
+    METHODS.update((str(name), (int(order), bool(adaptive), bool(stochastic)))
+                   for name, order, adaptive, stochastic in _rpy.methodTable())
+    StepFault = _rpy.StepFault
+else:
+
+    class StepFault(openmm.OpenMMException):  # type: ignore[no-redef]
+        """A failed plugin step; without the plugin a placeholder that is never raised.
+
+        The plugin's ``rpyplugin.StepFault`` (an ``openmm.OpenMMException``) is raised by
+        ``RPYIntegrator.step``/``stepTo`` when a step fails; other
+        ``openmm.OpenMMException`` s are not step faults. ``str(exc)`` is the one-line
+        message.
+
+        Attributes
+        ----------
+        kind : str
+            ``"non_finite"``, ``"step_underflow"``, ``"not_positive_definite"`` or
+            ``"lanczos_not_converged"``.
+        method : str
+            The integrator's method.
+        time : float
+            Time of the last good state (which the Context keeps), in ps (= tau_d).
+        bead : int
+            The bead concerned (``non_finite``: the first non-finite one), or -1.
+        error_estimate : float
+            ``step_underflow``: the error estimate over the tolerance; nan otherwise.
+        """
+
+        kind = method = ""
+        time = math.nan
+        bead = -1
+        error_estimate = math.nan
 
 
 def available() -> bool:
@@ -153,6 +204,17 @@ def available() -> bool:
 def load_error() -> str | None:
     """Why the plugin is unavailable, or ``None`` when it loaded."""
     return _load_error
+
+
+def rebuild_needed() -> bool:
+    """True when a compiled plugin is there but cannot be used until it is rebuilt.
+
+    Compiled against another OpenMM (major.minor) than the one imported, from older sources
+    than these Python files, or failing to load or register its kernels. Not when it was
+    never built or is switched off by ``KNOTMM_NO_PLUGIN``: then :func:`available` is False
+    by choice. :func:`knotmm.engine.engines.resolve_engine` warns about it on every run.
+    """
+    return _rebuild_needed
 
 
 _lapack: bool | None = None  # None: not decided yet
@@ -291,6 +353,9 @@ if _rpy is not None:
                 f"noise={self.getNoiseMethod()!r})"
             )
 
+    # XmlSerializer.deserialize / clone give this class (rpyplugin casts their result)
+    _rpy.cast_class = RPYIntegrator
+
 else:
 
     class RPYIntegrator:  # type: ignore[no-redef]
@@ -364,6 +429,8 @@ def from_python_integrator(integrator, threads: int = 1,
     PluginUnavailableError
         If the plugin is not available.
     """
+    if _rpy is None:
+        raise PluginUnavailableError(_load_error)
     name = getattr(integrator, "name", None)
     if name not in METHODS:
         raise ValueError(

@@ -355,7 +355,7 @@ def test_runs_on_the_python_engine():
     from knotmm.engine.simulation import Simulation
 
     sim = Simulation.from_config(_cfg())
-    assert sim.engine == "python" and sim._plugin is None
+    assert sim.engine == "python"
     assert isinstance(sim.integrator, LeimkuhlerMatthews)
     sim.step(3)
     assert sim.n_evaluations == 3  # one velocity a step

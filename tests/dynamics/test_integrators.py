@@ -236,12 +236,12 @@ def test_default_run_is_within_1e3_d_of_converged_solution():
     """The issue's accuracy requirement: the default run file (rk23, tolerance 1e-4 d, default
     platform) from the default T(2,3), N = 90 start stays within 1e-3 d of a converged
     solution (rk23, tolerance 1e-8 d, Reference platform) over 4 tau_d."""
-    from knotmm.config import resolve_stepping
+    from knotmm.config import resolve_stepping, resolve_tolerance
     from knotmm.dynamics.registry import integrator_from_config
 
     cfg = RunConfig.from_dict({})
     assert resolve_stepping(cfg) == ("rk23", 0.01)
-    assert (cfg["run.tolerance"], cfg["knot.beads"]) == (1e-4, 90)
+    assert (resolve_tolerance(cfg, "rk23"), cfg["knot.beads"]) == (1e-4, 90)
     x0 = build_template(cfg).positions
 
     def frames(integrator, platform):

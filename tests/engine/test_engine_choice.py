@@ -83,7 +83,7 @@ def test_a_runs_noise_method_reaches_the_plugin(noise, beads, method):
     sim = Simulation.from_config(cfg)
     assert sim.engine == "plugin" and sim.integrator.name == "leimkuhler_matthews"
     sim.step(1)
-    rpy = sim._openmm_integrator
+    rpy = sim.openmm_integrator
     assert rpy.getNoiseMethod() == method and rpy.getLanczosTolerance() == 1e-7
 
 
@@ -103,9 +103,9 @@ def test_plugin_takes_the_python_engines_steps(integrator):
     np.testing.assert_allclose(pl.positions, py.positions, rtol=0, atol=1e-10)
     assert pl.currentStep == py.currentStep > 0
     assert pl.n_evaluations == py.n_evaluations
-    assert pl.integrator.n_rejected == py.integrator.n_rejected
+    assert pl.n_rejected == py.n_rejected
     if integrator == "rk23":
-        assert pl.integrator.timestep == pytest.approx(py.integrator.timestep, rel=1e-8)
+        assert pl.timestep == pytest.approx(py.timestep, rel=1e-8)
 
 
 @needs_plugin

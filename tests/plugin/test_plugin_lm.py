@@ -165,7 +165,7 @@ def test_auto_runs_it_on_the_plugin_and_resumes_exactly(tmp_path):
                 "engine": "auto"},
     })
     sim = Simulation.from_config(cfg)
-    assert sim.engine == "plugin" and sim._plugin.rpy.getMethod() == NAME
+    assert sim.engine == "plugin" and sim.openmm_integrator.getMethod() == NAME
     sim.run(0.1)
     sim.saveCheckpoint(tmp_path / "mid.chk")
     sim.run(0.1)

@@ -133,7 +133,8 @@ def test_landing_slack_is_relative_1e9():
 def test_method_table_shape():
     table = kp.rpyplugin.methodTable()
     assert [row[0] for row in table] == ["euler", "heun", "midpoint", "rk23", "rkc2",
-                                         "euler_maruyama", "ito_heun", "leimkuhler_matthews"]
+                                         "euler_maruyama", "ito_heun", "leimkuhler_matthews",
+                                         "ito_heun_adaptive"]
     for name, order, adaptive, stochastic in table:
         integ = kp.RPYIntegrator(0.01, name)
         assert (integ.isAdaptive(), integ.isStochastic()) == (adaptive, stochastic)
