@@ -13,7 +13,8 @@ ring as a line, and one *tracer* bead in a distinct colour with a short trail
 of its recent positions (relative to the centre of mass), which makes the swirl visible.
 
 The frames are encoded as MP4 (H.264) when the optional extra ``imageio-ffmpeg`` is
-installed, else as an animated GIF (Pillow, a matplotlib dependency).
+installed, else as an animated GIF (Pillow, a matplotlib dependency), into a temporary file
+beside the movie that is renamed once complete.
 
 Examples
 --------
@@ -32,7 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
-from knotmm.errors import ConfigError
+from knotmm.errors import ConfigError, KnotmmError
+from knotmm.io.atomic import replacing
+from knotmm.io.rundir import check_output_file, writing_output
 
 __all__ = ["MovieResult", "make_movie", "render_frames", "mp4_available", "MAX_AUTO_FRAMES"]
 
@@ -309,6 +312,11 @@ def make_movie(
         A bad option (named), or ``.mp4`` without imageio-ffmpeg.
     TrajectoryFileError
         The run cannot be read.
+    knotmm.io.rundir.OutputError
+        ``out`` cannot be written (read-only, a directory in the way): exit code 2, before
+        any frame is drawn; :class:`~knotmm.io.rundir.WriteFault` (exit code 3) when writing
+        fails (a full disk). The movie is written to a temporary name and renamed once
+        complete: never a truncated movie under ``out``.
     """
     from knotmm.analysis import load_run
 
@@ -345,16 +353,45 @@ def make_movie(
     if out is None:
         base = data.directory if data.directory is not None else Path(".")
         out = Path(base) / f"movie.{fmt}"
-    out.parent.mkdir(parents=True, exist_ok=True)
+    check_output_file(out)  # read-only, a directory in the way: one line before rendering
 
     title = _title(data)
     frames = render_frames(positions[idx], times[idx], tracer, int(trail), dpi, title)
-    if fmt == "mp4":
-        count = _write_mp4(out, frames, fps)
-    else:
-        count = _write_gif(out, frames, fps)
+    write = _write_mp4 if fmt == "mp4" else _write_gif
+    kept = f"{str(out)!r} was not written (a file of that name before is left as it was)"
+    # the movie goes to a temporary name beside `out` and is renamed when complete, so a
+    # full disk or a stop never leaves a truncated movie under the final name
+    try:
+        with writing_output(out, kept=kept), replacing(out) as tmp, \
+                writing_output(out, kept=kept):
+            count = write(tmp, _drawn(frames), fps)
+    except _DrawingFailed as exc:  # not a write failure: drawing a frame went wrong
+        raise exc.original from None
     log.info("wrote %s (%d frames)", out, count)
     return MovieResult(path=out, frames=count, fps=float(fps), format=fmt, stride=int(stride))
+
+
+class _DrawingFailed(KnotmmError):
+    """Carries an error raised while a frame was drawn past the writers' error handling."""
+
+    def __init__(self, original: BaseException):
+        super().__init__(str(original))
+        self.original = original
+
+
+def _drawn(frames):
+    """The frames, an error while drawing one wrapped in :class:`_DrawingFailed`."""
+    it = iter(frames)
+    while True:
+        try:
+            frame = next(it)
+        except StopIteration:
+            return
+        except KnotmmError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - re-raised as it was by make_movie
+            raise _DrawingFailed(exc) from exc
+        yield frame
 
 
 def _title(data) -> str:
@@ -387,7 +424,7 @@ def _write_mp4(path: Path, frames, fps: float) -> int:
                     pix_fmt_out="yuv420p",
                     quality=7,
                     macro_block_size=16,
-                    ffmpeg_log_level="error",
+                    ffmpeg_log_level="quiet",  # its failures are ours to report, in one line
                 )
                 writer.send(None)
             writer.send(np.ascontiguousarray(frame).tobytes())
@@ -395,7 +432,34 @@ def _write_mp4(path: Path, frames, fps: float) -> int:
     finally:
         if writer is not None:
             writer.close()
+    if count and not _mp4_complete(path):
+        # ffmpeg ends quietly when its output fails at the end (a full disk while it writes
+        # the trailer): the file is then cut short
+        raise RuntimeError("ffmpeg wrote an incomplete MP4 (its index, the moov box, is "
+                           "missing or cut short)")
     return count
+
+
+def _mp4_complete(path) -> bool:
+    """Whether an MP4's top-level boxes fill the file exactly and include ``moov``/``mdat``."""
+    size = Path(path).stat().st_size
+    seen, pos = set(), 0
+    with open(path, "rb") as fh:
+        while pos < size:
+            fh.seek(pos)
+            head = fh.read(16)
+            if len(head) < 8:
+                return False
+            n = int.from_bytes(head[:4], "big")
+            if n == 1:  # a 64-bit size follows the type
+                n = int.from_bytes(head[8:16], "big") if len(head) == 16 else 0
+            elif n == 0:  # the box runs to the end of the file
+                n = size - pos
+            if n < 8:
+                return False
+            seen.add(head[4:8])
+            pos += n
+    return pos == size and {b"moov", b"mdat"} <= seen
 
 
 def _write_gif(path: Path, frames, fps: float) -> int:
@@ -409,6 +473,7 @@ def _write_gif(path: Path, frames, fps: float) -> int:
     duration = max(20, int(round(1000.0 / fps)))  # GIF delays are in 10 ms units
     images[0].save(
         path,
+        format="GIF",
         save_all=True,
         append_images=images[1:],
         duration=duration,

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from knotmm.errors import ConfigError
+
 __all__ = [
     "SpectralPeak",
     "Spectrum",
@@ -146,6 +148,22 @@ def refine_frequency(
     return float(res.x)
 
 
+#: Frame spacings (tau_d) a spectrum is computed for: outside, squared frequencies and
+#: periods under- or overflow in double precision (1e300 tau_d gives f**2 = 0).
+TIME_SCALES = (1e-100, 1e100)
+
+
+def _check_time_scale(dt: float, length: float) -> None:
+    """ConfigError (one line) for a time axis the spectra cannot resolve in double precision."""
+    lo, hi = TIME_SCALES
+    if not (np.isfinite(dt) and np.isfinite(length) and lo <= dt and length <= hi):
+        raise ConfigError(
+            f"frames {dt:g} tau_d apart over {length:g} tau_d: outside what a spectrum resolves "
+            f"in double precision (spacing >= {lo:g}, window <= {hi:g} tau_d); check the frame "
+            f"interval (--frame-interval or run.toml's output.frame_interval)"
+        )
+
+
 def line_spectrum(
     signals: np.ndarray, times: np.ndarray, min_frequency: float = 0.0, name: str = ""
 ) -> Spectrum:
@@ -169,6 +187,7 @@ def line_spectrum(
     m = len(times)
     dt = float(times[1] - times[0])
     length = m * dt
+    _check_time_scale(dt, length)
     tapered = signals * _taper(m)[:, None]
     n_fft = int(2 ** np.ceil(np.log2(_PAD * m)))
     power = (np.abs(np.fft.fft(tapered, n=n_fft, axis=0)) ** 2).sum(axis=1)

@@ -16,7 +16,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "Render a run directory as a movie: a 3D view with gravity down, a side view and "
             "a top view, centred on the centre of mass as it falls, one bead in red with a "
             "trail so the swirl is visible. MP4 when imageio-ffmpeg is installed "
-            "(knotmm[movie]), else GIF."
+            "(knotmm[movie]), else GIF. The movie is written to a temporary file and renamed "
+            "when complete; an unwritable --out is refused before rendering (exit 2), a "
+            "failure while writing (a full disk) is one line and exit 3."
         ),
     )
     p.add_argument("run", metavar="RUN_DIR", help="run directory")
@@ -57,7 +59,20 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def execute(args) -> int:
-    """Render and print the one-line summary."""
+    """Render and print the one-line summary (exit 130 with one line when stopped)."""
+    try:
+        return _execute(args)
+    except KeyboardInterrupt:  # Ctrl-C; SIGTERM too (knotmm.cli.main)
+        import sys
+
+        out = args.out or "the movie"
+        print(f"knotmm: interrupted: {out} was not written (the movie goes to a temporary "
+              f"file until complete; a file of that name before is left as it was)",
+              file=sys.stderr)
+        return 130
+
+
+def _execute(args) -> int:
     from knotmm.movie import make_movie
 
     result = make_movie(

@@ -21,23 +21,32 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "orbit.dcd + topology.pdb (one period), mode_1.dcd and orbit_multipliers.png "
             "(default into RUN_DIR/orbit). With --continue, follow the orbit along a "
             "parameter and report where a multiplier crosses the unit circle "
-            "(continuation.csv, continuation.json, continuation.png). Model units: d, tau_d."
+            "(continuation.csv, continuation.json, continuation.png, rewritten after each "
+            "converged point; --resume goes on with a stopped one). The output directory is "
+            "locked while orbit writes there, and an earlier orbit's files in it are replaced. "
+            "Ctrl-C or SIGTERM stops at once (exit 130): a continuation keeps every converged "
+            "point. Model units: d, tau_d."
         ),
     )
     p.add_argument("run", metavar="RUN_DIR", help="a deterministic run directory")
     p.add_argument("--t", type=float, metavar="T",
                    help="time of the starting state in tau_d (default: middle of the window)")
     p.add_argument("--modes", type=int, default=10, metavar="K",
-                   help="leading non-neutral Floquet multipliers to compute (default 10)")
+                   help="leading non-neutral Floquet multipliers to compute (default 10; at "
+                   "most 3N - 8 for N beads)")
     p.add_argument("--out", metavar="DIR", help="output directory (default RUN_DIR/orbit)")
     p.add_argument("--continue", dest="spec", metavar="KEY=A:B",
                    help="follow the orbit along a parameter, e.g. "
                    "model.bending_stiffness=5:500 or knot.beads=60:90")
     p.add_argument("--points", type=int, default=8, metavar="N",
                    help="points of the continuation between A and B (default 8)")
+    p.add_argument("--resume", action="store_true",
+                   help="with --continue: go on with the continuation stopped in --out "
+                   "(Ctrl-C, SIGTERM, a kill), from its last converged point; give the "
+                   "options it was started with")
     p.add_argument("--timestep", type=float, metavar="H",
-                   help="fixed step of the flow map in tau_d (default: 0.01, smaller for "
-                   "stiffer chains so that Heun stays stable)")
+                   help="fixed step of the flow map in tau_d, in (0, 0.05] (default: 0.01, "
+                   "smaller for stiffer chains so that Heun stays stable)")
     p.add_argument("--tolerance", type=float, default=1e-8, metavar="R",
                    help="Newton's residual in d rms per bead (default 1e-8)")
     p.add_argument("--engine", choices=("auto", "plugin", "python"), default="auto",
@@ -75,7 +84,34 @@ def _print_orbit(summary: dict) -> None:
 
 
 def execute(args) -> int:
-    """Find the orbit (and a continuation); 0 when converged, 1 when Newton did not."""
+    """Find the orbit (and a continuation); 0 when converged, 1 when Newton did not.
+
+    A signal (Ctrl-C, SIGTERM) stops at the next integration step: exit 130 with one line
+    saying what was kept.
+    """
+    import io
+    import sys
+
+    from knotmm.engine.interrupt import stop_between_steps
+    from knotmm.errors import ConfigError
+    from knotmm.orbit.driver import OrbitInterrupted
+
+    if args.resume and not args.spec:
+        raise ConfigError("--resume goes on with a continuation: give it with --continue "
+                          "KEY=A:B and the --out, --points and --modes it was started with")
+    try:
+        # the first signal stops at the next step of the flow map, never inside a write
+        with stop_between_steps(stream=io.StringIO()):
+            return _execute(args)
+    except OrbitInterrupted as exc:
+        print(f"knotmm: {exc.message}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("knotmm: interrupted before the orbit's computation began; nothing was "
+              "written", file=sys.stderr)
+    return 130
+
+
+def _execute(args) -> int:
     from knotmm.orbit.driver import continuation_of_run, orbit_of_run
 
     common = dict(t=args.t, modes=args.modes, out=args.out, timestep=args.timestep,
@@ -90,7 +126,7 @@ def execute(args) -> int:
 
         branch, bifurcations, out = continuation_of_run(args.run, args.spec,
                                                         points=args.points, on_point=show,
-                                                        **common)
+                                                        resume=args.resume, **common)
         for b in bifurcations:
             where = "" if "discrete" in b.kind else f" near {b.value:.6g}"
             print(f"bifurcation{where}: {b.kind}; {'; '.join(b.notes)}")

@@ -41,6 +41,7 @@ import openmm
 from openmm import unit
 
 from knotmm.dynamics.deterministic import RK23, Integrator
+from knotmm.engine.affinity import CorePin
 from knotmm.engine.checkpoint import read_checkpoint, write_checkpoint
 from knotmm.engine.engines import PYTHON, make_engine, resolve_engine
 from knotmm.engine.interrupt import raise_if_requested
@@ -156,7 +157,12 @@ class Simulation:
         self._engine = make_engine(engine, self.integrator, threads=self.mobility_threads,
                                    n_beads=pos.shape[0])
         self.openmm_integrator = self._engine.openmm_integrator
-        self.context = openmm.Context(self.system, self.openmm_integrator, plat, props)
+        # The CPU platform's one pool thread and the thread asking for forces share a core
+        # while the plugin steps (knotmm.engine.affinity): half the wall time of a run here.
+        self.core_pin = CorePin(plat.getName() == "CPU" and int(threads) == 1
+                                and self.mobility_threads == 1)
+        with self.core_pin.creating():
+            self.context = openmm.Context(self.system, self.openmm_integrator, plat, props)
         self.platform_name = plat.getName()
         self.positions = pos
         self.n_beads = pos.shape[0]
@@ -387,9 +393,8 @@ class Simulation:
         if not np.all(np.isfinite(y)):
             bead = int(np.argwhere(~np.isfinite(y).all(axis=1))[0, 0])
             raise SimulationFault(
-                f"positions became non-finite at {where}: first bad bead {bead}. Hint: lower "
-                f"run.tolerance (adaptive) or run.timestep (fixed step), or use an adaptive "
-                f"run.integrator (rk23, rkc2)"
+                f"positions became non-finite at {where}: first bad bead {bead}. Hint: "
+                f"{self._step_hint()}"
             )
         lengths = self.bond_lengths(y)
         worst = int(np.argmax(lengths))
@@ -398,8 +403,19 @@ class Simulation:
                 f"bond {worst} (beads {worst}-{(worst + 1) % self.n_beads}) is "
                 f"{lengths[worst]:.4g} d long at {where}, past run.max_bond_length = "
                 f"{self.max_bond_length:g}. Hint: the step is too large for the forces "
-                f"(lower run.tolerance or run.timestep), or the template overlaps itself"
+                f"({self._step_hint()}), or the template overlaps itself"
             )
+
+    def _step_hint(self) -> str:
+        """What would survive where this run's steps broke down (for the fault's one line)."""
+        integ = self.integrator
+        if getattr(integ, "adaptive", False):
+            return "lower run.tolerance"
+        if getattr(integ, "kT", 0.0) > 0.0:
+            return (f'run.integrator = "ito_heun_adaptive" shortens its steps at close '
+                    f"contacts and survives where {integ.name} at a fixed "
+                    f"{integ.timestep:g} tau_d does not; or lower run.timestep")
+        return "lower run.timestep, or use an adaptive run.integrator (rk23, rkc2)"
 
     def sync_context(self) -> None:
         """Put the current positions, step count and time into the Context (for reporters)."""

@@ -8,13 +8,14 @@ file, not the temporary one.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO
 
-__all__ = ["write_atomic", "write_text_atomic"]
+__all__ = ["replacing", "write_atomic", "write_text_atomic"]
 
 
 def write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) -> None:
@@ -43,3 +44,36 @@ def write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) ->
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
     write_atomic(path, lambda fh: fh.write(text.encode("utf-8")))
+
+
+@contextlib.contextmanager
+def replacing(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` for a writer that wants a file name.
+
+    For writers that open the file themselves (mdtraj, Pillow, ffmpeg): the temporary name
+    ends with ``path``'s suffix (``.m.gif.k2x9.tmp.gif``), so a writer that picks its format
+    from the name still does. When the block ends without an exception the file is flushed
+    to disk and renamed to ``path``; otherwise it is removed and ``path`` is left as it was
+    (absent, or its old content). The temporary file exists (empty) when the block starts.
+    """
+    path = Path(path)
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+                                   suffix=".tmp" + path.suffix)
+    except OSError as exc:
+        exc.filename = str(path)  # name the file meant, not a temporary one
+        raise
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.chmod(tmp, 0o644)
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException as exc:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        if (isinstance(exc, OSError) and exc.errno is not None  # (not a knotmm error)
+                and exc.filename in (None, tmp)):
+            exc.filename = str(path)
+        raise

@@ -34,6 +34,7 @@ from knotmm.errors import ConfigError, KnotmmError, RunDirectoryError
 
 __all__ = [
     "ANALYSIS_FILE",
+    "ANALYSIS_RUNNING_KEY",
     "CHECKPOINT_FILE",
     "LOCK_FILE",
     "OBSERVABLES_FILE",
@@ -49,14 +50,21 @@ __all__ = [
     "VMD_FILE",
     "OutputError",
     "RunLock",
+    "WriteFault",
+    "check_output_directory",
+    "check_output_file",
     "describe_os_error",
+    "disk_full",
+    "lock_owner",
     "prepare_directory",
     "read_facts",
+    "retire_stale_analysis",
     "run_file_header",
     "run_status",
     "write_run_toml",
     "write_vmd_script",
     "writing",
+    "writing_output",
 ]
 
 #: Frames (Angstrom, DCD).
@@ -348,3 +356,168 @@ def _read_pid(fd: int) -> int | None:
         return int(text) if text else None
     except (OSError, ValueError):
         return None
+
+
+# -- outputs of the other commands (orbit, movie) --------------------------------------------
+class WriteFault(OutputError):
+    """A file could not be written part way through a command's output (exit code 3).
+
+    The files written before it are kept; the one that failed is not left under its name.
+    """
+
+    exit_code = 3
+
+
+#: Free space (bytes) under which a failed write is taken for a full disk.
+FULL_DISK_BYTES = 1 << 20
+
+
+def disk_full(directory, needed: int = 0) -> bool:
+    """Whether the file system of ``directory`` has less room than ``needed`` (or 1 MiB)."""
+    try:
+        st = os.statvfs(directory)
+    except OSError:
+        return False
+    return st.f_bavail * st.f_frsize < max(int(needed), FULL_DISK_BYTES)
+
+
+@contextlib.contextmanager
+def writing_output(path, needed: int = 0, kept: str = ""):
+    """Turn a failure to write ``path`` inside the block into a :class:`WriteFault` (exit 3).
+
+    Writers outside Python report a full disk in their own way (mdtraj's DCD writer as a
+    ``TypeError``, ffmpeg as a broken pipe): for those, when the file system holds less than
+    ``needed`` bytes (or 1 MiB), the cause is named as a full disk; an ``OSError`` with its
+    own cause (EROFS, ENOSPC, ...) keeps it, and any other failure is named with its type.
+    ``kept`` is added to the message (what was written before).
+    """
+    try:
+        yield
+    except KnotmmError:
+        raise
+    except Exception as error:  # noqa: BLE001 - one line naming the file, whatever was raised
+        cause = error
+        own = isinstance(error, OSError) and error.errno not in (None, errno.EPIPE)
+        if not own and disk_full(Path(path).parent, needed):
+            cause = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+        if isinstance(cause, OSError):
+            line = describe_os_error(path, cause)
+        else:
+            line = f"cannot write {str(path)!r}: {type(cause).__name__}: {cause}"
+        raise WriteFault(" ".join(line.split()) + (f"; {kept}" if kept else "")) from None
+
+
+def check_output_directory(directory, option: str = "--out") -> None:
+    """Check, before a computation, that ``directory`` can take its output files (exit 2).
+
+    It may exist (a directory) or not (then it is created, with its parents); a probe file
+    is created and removed in it. :class:`RunDirectoryError` for a file in the way,
+    :class:`OutputError` for a read-only or otherwise unwritable place.
+    """
+    import tempfile
+
+    directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        raise RunDirectoryError(
+            f"{option} {str(directory)!r} is a file, not a directory; choose another {option}"
+        )
+    with writing(directory):
+        directory.mkdir(parents=True, exist_ok=True)
+        try:
+            fd, probe = tempfile.mkstemp(dir=directory, prefix=".knotmm-probe.")
+        except OSError as exc:
+            exc.filename = str(directory)  # the directory, not the probe's name
+            raise
+        os.close(fd)
+        os.unlink(probe)
+
+
+def check_output_file(path, option: str = "--out") -> None:
+    """Check, before a computation, that the file ``path`` can be written (exit 2).
+
+    Its directory is created if missing; :class:`RunDirectoryError` if ``path`` is a
+    directory, :class:`OutputError` if the place is read-only or otherwise unwritable.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise RunDirectoryError(
+            f"{option} {str(path)!r} is a directory; give a file name (e.g. "
+            f"{str(path / 'movie.gif')!r})"
+        )
+    check_output_directory(path.parent, option)
+
+
+# -- who holds a directory's lock (analyze on a live run, a second sweep) -------------------
+def lock_owner(directory) -> int | None:
+    """The process id of the live process holding ``directory``'s :data:`LOCK_FILE`.
+
+    Returns None when no live process holds it (no lock file, or one left by a process that
+    has ended: the kernel dropped its ``flock``), and 0 when a live process holds it but its
+    id cannot be read (a full disk when the lock was taken). Never raises.
+
+    The question is asked by taking a shared ``flock`` for an instant (and giving it back):
+    the owner's exclusive lock refuses it exactly while the owner lives. A process taking
+    the lock in that same instant is refused as by any owner (:class:`RunLock`).
+    """
+    path = Path(directory) / LOCK_FILE
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None  # no lock file (or none we may read): nobody is known to hold it
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                return _read_pid(fd) or 0
+            return None
+        with contextlib.suppress(OSError):
+            fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
+
+
+#: The key of ``analysis.json`` that ``knotmm analyze`` writes for a run still running: the
+#: time reached and the process id of the run (:func:`retire_stale_analysis` reads it).
+ANALYSIS_RUNNING_KEY = "run_still_running"
+
+
+def retire_stale_analysis(directory) -> bool:
+    """Remove ``directory``'s :data:`ANALYSIS_FILE` if it does not describe the run as it ended.
+
+    A run calls this when it records its final status (finished, interrupted or fault),
+    while it still holds its lock. The analysis is stale when ``knotmm analyze`` made it
+    while the run was running (it holds :data:`ANALYSIS_RUNNING_KEY`) or when it is older
+    than the run's last frame (its modification time is before the trajectory's); the
+    run's plots are left, ``knotmm analyze`` rewrites them. Returns whether the file was
+    removed; never raises (a run's end must not fail for it).
+    """
+    import json
+    import logging
+
+    directory = Path(directory)
+    path = directory / ANALYSIS_FILE
+    try:
+        made = path.stat().st_mtime_ns
+    except OSError:
+        return False
+    try:
+        stale = made < (directory / TRAJECTORY_FILE).stat().st_mtime_ns
+    except OSError:
+        stale = False
+    if not stale:
+        try:
+            data = json.loads(path.read_bytes())
+            stale = isinstance(data, dict) and bool(data.get(ANALYSIS_RUNNING_KEY))
+        except (OSError, ValueError):  # unreadable, or not JSON: not knotmm's live analysis
+            stale = False
+    if not stale:
+        return False
+    try:
+        path.unlink()
+    except OSError:
+        return False
+    logging.getLogger(__name__).info(
+        "removed %s: it was made before the run's last frame; run knotmm analyze again", path)
+    return True

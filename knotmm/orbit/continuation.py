@@ -32,8 +32,8 @@ from knotmm.errors import ConfigError, SimulationFault
 from knotmm.orbit.flow import rms
 from knotmm.orbit.shooting import MAX_MOVE, Orbit, bordered_operator, residual, solve_orbit
 
-__all__ = ["ContinuationPoint", "Bifurcation", "parse_range", "continue_orbit",
-           "find_bifurcations"]
+__all__ = ["ContinuationPoint", "Bifurcation", "parse_range", "check_range",
+           "continue_orbit", "find_bifurcations"]
 
 log = logging.getLogger(__name__)
 
@@ -97,7 +97,41 @@ def parse_range(text: str) -> tuple[str, float, float]:
         raise ConfigError(f"--continue {text!r}: START and STOP must be numbers") from None
     if not (math.isfinite(a) and math.isfinite(b)) or a == b:
         raise ConfigError(f"--continue {text!r}: START and STOP must be finite and differ")
+    if key.strip() in DISCRETE_KEYS and not (a.is_integer() and b.is_integer()):
+        raise ConfigError(f"--continue {text!r}: {key.strip()} takes whole numbers, e.g. "
+                          f"{key.strip()}={math.floor(a)}:{math.ceil(b)}")
     return key.strip(), a, b
+
+
+#: The smallest parameter step between two points, relative to ``max(1, |START|)``: ten
+#: times the finite-difference step of ``dr/dp`` (``1e-6``), below which ``dr/dp`` is noise.
+MIN_RELATIVE_STEP = 1e-5
+
+
+def check_range(cfg, key: str, start: float, stop: float, points: int) -> None:
+    """Check a continuation before any orbit is computed (one line, ConfigError).
+
+    ``points`` must be an integer >= 2; START and STOP must be values the run file accepts
+    for ``key`` (:meth:`knotmm.config.RunConfig.replace` validates them); a continuous
+    range must be wider than ``points - 1`` steps of :data:`MIN_RELATIVE_STEP`.
+    """
+    if isinstance(points, bool) or not isinstance(points, int) or points < 2:
+        raise ConfigError(f"--points {points!r}: need an integer >= 2")
+    text = f"--continue {key}={start:g}:{stop:g}"
+    for value in (start, stop):
+        try:
+            cfg.replace({key: int(value) if key in DISCRETE_KEYS else float(value)})
+        except ConfigError as exc:
+            raise ConfigError(f"{text}: {value:g} is not a valid {key} ({exc})") from None
+    if key not in DISCRETE_KEYS:
+        step = abs(stop - start) / (points - 1)
+        smallest = MIN_RELATIVE_STEP * max(1.0, abs(start))
+        if step < smallest:
+            raise ConfigError(
+                f"{text} with --points {points}: steps of {step:.3g} are below the "
+                f"{smallest:.3g} a continuation can resolve (dr/dp by finite differences); "
+                f"widen the range or ask for fewer points"
+            )
 
 
 def _model(cfg, key: str, value: float):
@@ -163,7 +197,7 @@ def _arclength_newton(make_flow, cfg, key, u1, tangent, ds, scale, tolerance,
 
 
 def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
-                   tolerance=1e-8, floquet_fn=None, on_point=None):
+                   tolerance=1e-8, floquet_fn=None, on_point=None, branch=None):
     """Follow ``orbit`` (converged at ``cfg``) from ``key = start`` to ``stop``.
 
     Parameters
@@ -188,19 +222,23 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
         ``floquet_fn(flow, orbit, k)``; default :func:`knotmm.orbit.floquet.floquet`.
     on_point : callable, optional
         Called with each new :class:`ContinuationPoint` (progress, partial output).
+    branch : list of ContinuationPoint, optional
+        Points already found by an interrupted continuation with the same arguments: it
+        goes on after them, as it would have (``orbit`` may then be None).
 
     Returns
     -------
     list of ContinuationPoint
-        In the order found; stops at ``stop``, at a failed Newton solve, or after
-        ``3 * points`` points.
+        In the order found (``branch``'s first); stops at ``stop``, at a failed Newton
+        solve, or after ``3 * points`` points past the first two.
     """
     from knotmm.orbit.floquet import floquet as default_floquet
 
     floquet_fn = floquet_fn or default_floquet
     if points < 2:
         raise ConfigError(f"--points {points!r}: need at least 2")
-    branch: list[ContinuationPoint] = []
+    branch = list(branch or [])
+    done = len(branch)
 
     def add(value, orb, flow):
         res = floquet_fn(flow, orb, min(modes, orb.positions.size - 8)) if modes else None
@@ -213,18 +251,21 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
     values = np.linspace(start, stop, points)
     if discrete:
         values = np.unique(np.round(values).astype(int))
+    if len(values) < 2:
+        raise ConfigError(f"--continue {key}={start:g}:{stop:g}: the range holds a single "
+                          f"value of {key}; give two that differ")
     first = values[0]
-    current = orbit
+    current = branch[-1].orbit if branch else orbit
     step_p = values[1] - values[0]
     if discrete:
-        for value in values:
+        for value in values[done:]:
             found = _orbit_at_beads(current, cfg, int(value), make_flow, tolerance)
             if found is None:
                 break
             current, flow = found
             add(value, current, flow)
         return branch
-    for value in (first, first + step_p):
+    for value in (first, first + step_p)[done:]:
         try:
             flow = make_flow(_model(cfg, key, value), current.positions)
             current = solve_orbit(flow, current.positions, current.period, current.rotation,
@@ -236,7 +277,7 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
             return branch
         add(value, current, flow)
     direction = math.copysign(1.0, stop - start)
-    for _ in range(3 * points):
+    for _ in range(3 * points - max(0, done - 2)):
         if (branch[-1].value - stop) * direction >= -1e-2 * abs(step_p):
             break  # at STOP (within a hundredth of a step) or past it
         a, b = branch[-2], branch[-1]

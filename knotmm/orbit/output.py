@@ -9,6 +9,14 @@ Files (names owned here):
   the linearised flow and scaled to ``MODE_AMPLITUDE`` d rms per bead in every frame, so
   that VMD shows how the shape departs from the orbit.
 * ``orbit_multipliers.png``: the multipliers in the complex plane with the unit circle.
+
+A continuation writes ``continuation.csv``, ``continuation.json``, ``continuation.png`` and
+``continuation_state.npz`` (every point's orbit in float64, for ``--resume``), all rewritten
+after each converged point. Every file is written to a temporary name and renamed, so none
+is ever half-written under its name; a failure while writing is one line naming the file
+(:class:`knotmm.io.rundir.WriteFault`, exit code 3), the files written before kept. Before
+an orbit's files are written, those of an earlier orbit in the same directory are removed
+(a ``--modes 0`` orbit leaves no ``mode_1.dcd`` of another one behind).
 """
 
 from __future__ import annotations
@@ -18,16 +26,22 @@ import math
 
 import numpy as np
 
-from knotmm.io.atomic import write_text_atomic
+from knotmm.errors import ConfigError
+from knotmm.io.atomic import replacing, write_atomic, write_text_atomic
 from knotmm.io.rundir import TOPOLOGY_FILE as TOPOLOGY
+from knotmm.io.rundir import writing_output
 from knotmm.orbit.flow import JVP_EPSILON, rms
 
-__all__ = ["ORBIT_FILE", "orbit_summary", "write_orbit_files", "plot_multipliers"]
+__all__ = ["ORBIT_FILE", "ORBIT_OUTPUTS", "BRANCH_OUTPUTS", "orbit_summary",
+           "write_orbit_files", "plot_multipliers", "write_branch", "read_branch",
+           "remove_outputs"]
 
 ORBIT_FILE = "orbit.json"
 ORBIT_DCD = "orbit.dcd"
 MODE_DCD = "mode_1.dcd"
 PLOT = "orbit_multipliers.png"
+#: Every file an orbit writes (removed before a new orbit is written into the directory).
+ORBIT_OUTPUTS = (ORBIT_FILE, TOPOLOGY, ORBIT_DCD, MODE_DCD, PLOT)
 #: Frames per period in ``orbit.dcd`` and ``mode_1.dcd``.
 ORBIT_FRAMES = 60
 #: Size of the mode drawn in ``mode_1.dcd``, d rms per bead.
@@ -155,30 +169,71 @@ def plot_multipliers(result, path, title: str = "") -> None:
     plt.close(fig)
 
 
+def remove_outputs(out, names) -> None:
+    """Remove the files ``names`` from ``out``, and temporaries of them a killed writer left.
+
+    Raises OSError (the callers turn it into one line).
+    """
+    for name in names:
+        for p in [out / name, *out.glob(f".{name}.*")]:
+            if p.is_file() or p.is_symlink():
+                p.unlink()
+
+
+def _kept(out, written) -> str:
+    return (f"kept in {str(out)!r}: {', '.join(written)}" if written
+            else f"nothing was written in {str(out)!r}")
+
+
+def _dcd_bytes(frames: np.ndarray) -> int:
+    return int(frames.size * 4 + 4 * frames.shape[0] * 6 + 8192)
+
+
 def write_orbit_files(out, flow, orbit, result=None, summary: dict | None = None) -> list:
-    """Write every file of an orbit into ``out`` (created); return the names written."""
+    """Write every file of an orbit into the directory ``out``; return the names written.
+
+    The frames are computed first, then the files of an earlier orbit are removed and the
+    new ones written, ``orbit.json`` first. :class:`~knotmm.io.rundir.WriteFault` (exit 3)
+    names the file that failed and the ones kept.
+    """
     from knotmm.io.dcd import write_dcd
     from knotmm.io.pdb import write_pdb
 
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
     frames = flow.trajectory(orbit.positions, orbit.period, ORBIT_FRAMES)
-    write_pdb(out / TOPOLOGY, orbit.positions)
-    write_dcd(out / ORBIT_DCD, frames)
-    written += [TOPOLOGY, ORBIT_DCD]
-    if result is not None and len(result.multipliers):
-        write_dcd(out / MODE_DCD, _mode_frames(flow, orbit, result.modes[0], frames))
-        plot_multipliers(result, out / PLOT)
-        written += [MODE_DCD, PLOT]
+    with_mode = result is not None and len(result.multipliers) > 0
+    mode = _mode_frames(flow, orbit, result.modes[0], frames) if with_mode else None
+    written: list[str] = []
+
+    def put(name, write, needed=0):
+        with writing_output(out / name, needed, kept=_kept(out, written)):
+            write(out / name)
+        written.append(name)
+
+    def via_temporary(write):
+        def go(path):
+            with replacing(path) as tmp:
+                write(tmp)
+        return go
+
+    with writing_output(out, kept=_kept(out, written)):
+        remove_outputs(out, ORBIT_OUTPUTS)
     if summary is not None:
-        write_json(out / ORBIT_FILE, summary)
-        written.append(ORBIT_FILE)
+        put(ORBIT_FILE, lambda p: write_json(p, summary))
+    put(TOPOLOGY, via_temporary(lambda p: write_pdb(p, orbit.positions)))
+    put(ORBIT_DCD, lambda p: write_dcd(p, frames), _dcd_bytes(frames))
+    if with_mode:
+        put(MODE_DCD, lambda p: write_dcd(p, mode), _dcd_bytes(mode))
+        put(PLOT, via_temporary(lambda p: plot_multipliers(result, p)))
     return written
 
 
 BRANCH_CSV = "continuation.csv"
 BRANCH_JSON = "continuation.json"
 BRANCH_PLOT = "continuation.png"
+#: Every point's orbit (float64) and the continuation's options, for ``--resume``.
+BRANCH_STATE = "continuation_state.npz"
+#: Every file a continuation writes (removed when a new one starts in the directory).
+BRANCH_OUTPUTS = (BRANCH_CSV, BRANCH_JSON, BRANCH_PLOT, BRANCH_STATE)
 
 
 def branch_rows(key: str, branch, modes: int) -> list[dict]:
@@ -200,12 +255,16 @@ def branch_rows(key: str, branch, modes: int) -> list[dict]:
     return rows
 
 
-def write_branch(out, key: str, branch, bifurcations, modes: int, extra: dict) -> list:
-    """Write ``continuation.csv``, ``continuation.json`` and ``continuation.png``."""
+def write_branch(out, key: str, branch, bifurcations, modes: int, extra: dict,
+                 state: dict | None = None) -> list:
+    """Write ``continuation.csv``, ``.json``, ``.png`` and (with ``state``) the state file.
+
+    Called after every converged point, so an interrupted continuation keeps its points;
+    ``state`` (the continuation's options, :func:`read_branch`) makes it resumable.
+    """
     import csv
     import io
 
-    out.mkdir(parents=True, exist_ok=True)
     rows = branch_rows(key, branch, modes)
     text = io.StringIO()
     if rows:
@@ -213,16 +272,101 @@ def write_branch(out, key: str, branch, bifurcations, modes: int, extra: dict) -
         writer.writeheader()
         for row in rows:
             writer.writerow({k: ("" if v is None else v) for k, v in row.items()})
-    write_text_atomic(out / BRANCH_CSV, text.getvalue())
-    write_json(out / BRANCH_JSON, {
+    written: list[str] = []
+
+    def put(name, write):
+        with writing_output(out / name, kept=_kept(out, written)):
+            write(out / name)
+        written.append(name)
+
+    put(BRANCH_CSV, lambda p: write_text_atomic(p, text.getvalue()))
+    put(BRANCH_JSON, lambda p: write_json(p, {
         "parameter": key, "points": rows,
         "bifurcations": [b.to_dict() | {"notes": b.notes} for b in bifurcations], **extra,
-    })
-    written = [BRANCH_CSV, BRANCH_JSON]
+    }))
     if rows:
-        _plot_branch(out / BRANCH_PLOT, key, rows, bifurcations)
-        written.append(BRANCH_PLOT)
+        def plot(path):
+            with replacing(path) as tmp:
+                _plot_branch(tmp, key, rows, bifurcations)
+
+        put(BRANCH_PLOT, plot)
+    if state is not None:
+        put(BRANCH_STATE, lambda p: write_atomic(p, lambda fh: np.savez(
+            fh, **_state_arrays(branch, state))))
     return written
+
+
+def _state_arrays(branch, state: dict) -> dict:
+    points = []
+    arrays = {}
+    for i, point in enumerate(branch):
+        o, f = point.orbit, point.floquet
+        arrays[f"x{i}"] = np.asarray(o.positions, dtype=np.float64)
+        entry = {"value": float(point.value), "period": float(o.period),
+                 "rotation": float(o.rotation),
+                 "displacement": [float(v) for v in o.displacement],
+                 "residual": float(o.residual), "converged": bool(o.converged),
+                 "iterations": int(o.iterations), "history": [float(h) for h in o.history],
+                 "message": str(o.message), "n_flows": int(o.n_flows),
+                 "timestep": float(o.timestep), "floquet": None}
+        if f is not None:
+            arrays[f"mu{i}"] = np.asarray(f.multipliers, dtype=np.complex128)
+            arrays[f"neutral{i}"] = np.asarray(f.neutral, dtype=np.complex128)
+            entry["floquet"] = {"neutral_names": list(f.neutral_names),
+                                "period": float(f.period), "n_flows": int(f.n_flows),
+                                "converged": bool(f.converged)}
+        points.append(entry)
+    arrays["meta"] = np.array(json.dumps({"version": 1, **state, "branch": points}))
+    return arrays
+
+
+def read_branch(out) -> tuple[dict, list]:
+    """The options and the points of the continuation saved in ``out`` (for ``--resume``).
+
+    Returns
+    -------
+    (dict, list of ContinuationPoint)
+        The ``state`` given to :func:`write_branch` and the branch, orbits in float64 as
+        they were found.
+
+    Raises
+    ------
+    ConfigError
+        No state file (nothing to resume), or a damaged one.
+    """
+    from knotmm.orbit.continuation import ContinuationPoint
+    from knotmm.orbit.floquet import FloquetResult
+    from knotmm.orbit.shooting import Orbit
+
+    path = out / BRANCH_STATE
+    if not path.exists():
+        raise ConfigError(
+            f"--resume: {str(out)!r} holds no continuation to resume (no {BRANCH_STATE}: "
+            f"none was started there, or it stopped before its first point); start it "
+            f"without --resume"
+        )
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            branch = []
+            for i, e in enumerate(meta.pop("branch")):
+                orbit = Orbit(np.array(data[f"x{i}"], dtype=np.float64), e["period"],
+                              e["rotation"], np.array(e["displacement"]), e["residual"],
+                              e["converged"], e["iterations"], list(e["history"]),
+                              e["message"], e["n_flows"], e["timestep"])
+                f = e["floquet"]
+                res = None if f is None else FloquetResult(
+                    np.array(data[f"mu{i}"]), np.empty((0,) + orbit.positions.shape),
+                    np.array(data[f"neutral{i}"]), list(f["neutral_names"]), f["period"],
+                    f["n_flows"], f["converged"])
+                branch.append(ContinuationPoint(float(e["value"]), orbit, res))
+    except Exception as exc:  # noqa: BLE001 - a damaged file, whatever numpy or json says
+        raise ConfigError(
+            f"--resume: {str(path)!r} is damaged ({type(exc).__name__}: "
+            f"{' '.join(str(exc).split())[:120]}); start the continuation again without "
+            f"--resume"
+        ) from None
+    return meta, branch
 
 
 def _plot_branch(path, key, rows, bifurcations) -> None:

@@ -104,7 +104,7 @@ def test_run_toml_reloads_as_the_same_config(short_run):
     loaded = load_run_file(directory / "run.toml")
     resolved = build_template(cfg).resolved
     # the integrator and step a run uses are written out ("auto" and an unset step resolved)
-    stepping = {"run.integrator": "rk23", "run.timestep": 0.01}
+    stepping = {"run.integrator": "rk23", "run.timestep": 0.01, "run.tolerance": 1e-4}
     expected = cfg.replace({**resolved, **stepping, "output.directory": str(directory)})
     assert loaded == expected
     facts = read_toml(directory / "run.toml")["knotmm"]
