@@ -141,7 +141,8 @@ class PluginEngine(Engine):
         start = sim.context.createCheckpoint()
         before = self._counts()
         try:
-            self.rpy.stepTo(target)
+            with sim.core_pin.stepping():  # OpenMM's pool thread on this core: same bits
+                self.rpy.stepTo(target)
         except openmm.OpenMMException:
             fine = False
         else:
@@ -167,10 +168,11 @@ class PluginEngine(Engine):
         landing = math.isfinite(target) and not sim.time + h < target - landing_slack(target)
         last_good = sim.context.createCheckpoint()
         try:
-            if landing:
-                self.rpy.stepTo(target)
-            else:
-                self.rpy.step(1)  # not clipped by the target: the same step stepTo takes
+            with sim.core_pin.stepping():
+                if landing:
+                    self.rpy.stepTo(target)
+                else:
+                    self.rpy.step(1)  # not clipped by the target: the same step stepTo takes
         except openmm.OpenMMException as exc:
             self._count(before, steps=False)  # the plugin kept the last good state
             fault = exc if isinstance(exc, StepFault) else None
