@@ -4,31 +4,63 @@ Each sub-command lives in its own module under ``knotmm/cli/`` and provides
 ``add_parser(subparsers)`` and ``execute(args) -> int``. User errors
 (:class:`knotmm.errors.KnotmmError`) are printed as one line, ``knotmm: error: ...``, and
 exit with the error's code (2 for bad input) and no traceback.
+
+``-v/--verbose`` and ``-q/--quiet`` belong to every sub-command, before or after its name
+(one parent parser, :func:`common_options`, given to ``knotmm`` and each sub-parser): ``-v``
+logs knotmm's debug messages, ``-q`` shows only warnings and errors (no summary on standard
+output, no progress).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import functools
 import importlib
 import logging
+import os
 import sys
+import time
 
 from knotmm import __version__
 from knotmm.errors import KnotmmError
+
+log = logging.getLogger("knotmm.cli")
 
 #: Sub-command name -> module under knotmm.cli.
 COMMANDS = ("run", "template", "analyze", "orbit", "sweep", "movie")
 
 
+def common_options() -> argparse.ArgumentParser:
+    """The options of ``knotmm`` and of every sub-command: ``-v/--verbose``, ``-q/--quiet``.
+
+    A parent parser (``parents=[...]``). The options are left out of the namespace when not
+    given (``argparse.SUPPRESS``), so that a sub-parser does not reset what was given
+    before the sub-command's name.
+    """
+    common = argparse.ArgumentParser(add_help=False)
+    group = common.add_argument_group("output")
+    group.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                       help="also show knotmm's debug messages")
+    group.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                       help="show only warnings and errors (no summary, no progress)")
+    return common
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with every available sub-command."""
+    common = common_options()
     parser = argparse.ArgumentParser(
         prog="knotmm",
         description="Simulate and analyse knotted filaments sedimenting at low Reynolds number.",
+        parents=[common],
     )
     parser.add_argument("--version", action="version", version=f"knotmm {__version__}")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(
+        dest="command",
+        metavar="COMMAND",
+        parser_class=functools.partial(argparse.ArgumentParser, parents=[common]),
+    )
     sub.required = True
     for name in COMMANDS:
         try:
@@ -80,12 +112,46 @@ def console_main() -> int:
         # Stopped by a signal: every file is closed and run.toml written. Python's own
         # teardown of the loaded libraries takes 1-3 s more on a loaded machine; a user (or a
         # batch system) asking to stop expects the process gone within a second.
-        import os
-
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)
     return code
+
+
+def _verbosity(parser: argparse.ArgumentParser, args) -> tuple[bool, bool]:
+    """``(verbose, quiet)`` from the parsed arguments; both at once is a usage error."""
+    verbose = bool(getattr(args, "verbose", False))
+    quiet = bool(getattr(args, "quiet", False))
+    if verbose and quiet:
+        parser.error("-v/--verbose and -q/--quiet exclude each other; give one")
+    args.verbose, args.quiet = verbose, quiet
+    return verbose, quiet
+
+
+@contextlib.contextmanager
+def _output(verbose: bool, quiet: bool):
+    """knotmm's log level (and, quiet, standard output discarded) while a command runs.
+
+    The root logger gets a handler on standard error at WARNING (``logging.basicConfig``,
+    which keeps handlers already there, e.g. pytest's); the ``knotmm`` logger is set to
+    DEBUG (verbose) or WARNING (quiet) and put back afterwards, so that a call of
+    :func:`main` leaves the logging of its caller as it was.
+    """
+    logging.basicConfig(level=logging.WARNING, format="knotmm: %(message)s")
+    package = logging.getLogger("knotmm")
+    level = package.level
+    if verbose:
+        package.setLevel(logging.DEBUG)
+    elif quiet:
+        package.setLevel(logging.WARNING)
+    try:
+        if quiet:
+            with open(os.devnull, "w") as devnull, contextlib.redirect_stdout(devnull):
+                yield
+        else:
+            yield
+    finally:
+        package.setLevel(level)
 
 
 def _dispatch(argv: list[str] | None) -> int:
@@ -95,25 +161,42 @@ def _dispatch(argv: list[str] | None) -> int:
     except KeyboardInterrupt:
         print("knotmm: interrupted while starting; nothing was written", file=sys.stderr)
         return 130
-    logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING,
-        format="knotmm: %(message)s",
-    )
+    verbose, quiet = _verbosity(parser, args)
+    if quiet and getattr(args, "progress", None) is None:
+        args.progress = False  # no bar and no progress lines (an explicit --progress wins)
+    with _output(verbose, quiet):
+        return _execute(args)
+
+
+def _execute(args) -> int:
+    """Run the parsed command; user errors and interruptions become exit codes."""
+    import platform
+
+    wall0 = time.monotonic()
+    log.debug("version %s, Python %s, %s", __version__, platform.python_version(), sys.platform)
+    options = {k: v for k, v in vars(args).items() if k not in ("execute", "command")}
+    log.debug("%s: %s", args.command, ", ".join(f"{k}={v!r}" for k, v in options.items()))
+    code = 1
     try:
-        return int(args.execute(args) or 0)
+        code = int(args.execute(args) or 0)
+        return code
     except KnotmmError as exc:
         print(f"knotmm: error: {exc}", file=sys.stderr)
-        return exc.exit_code
+        code = exc.exit_code
+        return code
     except KeyboardInterrupt:
         print("knotmm: interrupted; files written so far are kept (a run continues with "
               "knotmm run --resume DIR)", file=sys.stderr)
-        return 130
+        code = 130
+        return code
     except BrokenPipeError:  # output piped into a pager or `head` that closed early
-        import os
-
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
-        return 0
+        code = 0
+        return code
+    finally:
+        log.debug("%s: exit code %d after %.2f s", args.command, code,
+                  time.monotonic() - wall0)
 
 
 if __name__ == "__main__":  # pragma: no cover

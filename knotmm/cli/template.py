@@ -5,6 +5,7 @@ Examples
 ::
 
     knotmm template 5_2 --beads 120 --out 5_2.pdb
+    knotmm template figure-eight --beads 100
     knotmm template torus:2,3 --beads 60 --mirror --out left_trefoil.pdb
     knotmm template braid:1,-2,1,-2 --beads 100
     knotmm template file:runs/trefoil/trajectory.dcd --frame -1 --out last.pdb
@@ -26,8 +27,10 @@ from knotmm.errors import ConfigError, TemplateError
 logger = logging.getLogger(__name__)
 
 _KNOT_HELP = (
-    "the knot: a name from the tables (3_1, 5_2, 11a_367), torus:P,Q (e.g. torus:2,3), "
-    "braid:W (e.g. braid:1,-2,1,-2), or file:PATH (a PDB, or a DCD with its topology)"
+    "the knot: a name from the tables (3_1, 5_2, 11a_367) or a common name (trefoil, "
+    "figure-eight, cinquefoil, three-twist, stevedore, ...; --list lists them), torus:P,Q "
+    "(e.g. torus:2,3), braid:W (e.g. braid:1,-2,1,-2), or file:PATH (a PDB, or a DCD with "
+    "its topology)"
 )
 
 
@@ -148,6 +151,7 @@ def parse_knot(text: str) -> dict:
 def _print_list(out) -> None:
     from knotmm.shapes.knotinfo import (  # noqa: PLC0415
         BUILTIN_BRAIDS,
+        COMMON_NAMES,
         knotinfo_available,
         list_named_knots,
     )
@@ -155,6 +159,8 @@ def _print_list(out) -> None:
     print("built-in knots (braid words; no extra package needed):", file=out)
     for name, word in BUILTIN_BRAIDS.items():
         print(f"  {name:6s} {list(word)}", file=out)
+    common = ", ".join(f"{k} ({v})" for k, v in COMMON_NAMES.items() if v != "0_1")
+    print(textwrap.fill(f"common names: {common}", width=96, subsequent_indent="  "), file=out)
     names = [n for n in list_named_knots() if n not in BUILTIN_BRAIDS]
     if not knotinfo_available():
         print(

@@ -13,7 +13,8 @@ A run directory is a contract other tools rely on (``docs/architecture.md``):
                     bond (d), current step size, velocity evaluations
 ``checkpoint.npz``  the simulation state to resume from (:mod:`knotmm.engine.checkpoint`)
 ``analysis.json``   what ``knotmm analyze`` found (:mod:`knotmm.analysis.core`)
-``view.vmd``        a VMD script: ``vmd -e view.vmd`` loads the pair and draws the ring
+``view.vmd``        a VMD script: ``vmd -e RUN_DIR/view.vmd`` (from any directory) loads the
+                    pair, draws the ring and centres the view on it frame by frame
 =================== =========================================================================
 
 Every module that names one of these files imports the name from here. While a process
@@ -27,6 +28,7 @@ import contextlib
 import errno
 import fcntl
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -106,24 +108,83 @@ STATUS_INTERRUPTED = "interrupted"
 STATUSES = (STATUS_RUNNING, STATUS_FINISHED, STATUS_FAULT, STATUS_INTERRUPTED)
 
 VMD_SCRIPT = """\
-# VMD script written by knotmm {version}: run `vmd -e view.vmd` in this directory.
-# Lengths are in Angstrom: one bead diameter d = 10 A.
-mol new topology.pdb type pdb waitfor all
-mol addfile trajectory.dcd type dcd first 0 last -1 step 1 waitfor all
-set beads [atomselect top all]
-$beads set radius 5.0
-mol delrep 0 top
+# VMD script written by knotmm @VERSION@. Open it from any directory:
+#     vmd -e RUN_DIR/view.vmd        or, in VMD's Tk console:  source RUN_DIR/view.vmd
+# It loads topology.pdb and trajectory.dcd of its run directory and centres the view on the
+# chain in every frame, so that the falling ring stays in sight (knotmm_follow off: the lab
+# frame, where it falls out of view). Lengths are in Angstrom: one bead diameter d = 10 A.
+proc knotmm_run_directory {recorded} {
+    # source sets info script; vmd -e reads the file line by line and leaves it empty, so
+    # the directory the run was written in comes next, then the current directory
+    set candidates [list]
+    if {[info script] ne ""} {
+        lappend candidates [file dirname [file normalize [info script]]]
+    }
+    lappend candidates $recorded [pwd]
+    foreach dir $candidates {
+        set pdb [file join $dir @TOPOLOGY@]
+        set dcd [file join $dir @TRAJECTORY@]
+        if {[file isfile $pdb] && [file isfile $dcd]} {
+            return $dir
+        }
+    }
+    set message "view.vmd: no @TOPOLOGY@ and @TRAJECTORY@ in [join $candidates {, }]"
+    append message "; open view.vmd in its run directory: cd RUN_DIR; vmd -e view.vmd"
+    error $message
+}
+set knotmm_dir [knotmm_run_directory @RUN_DIR@]
+set knotmm_mol [mol new [file join $knotmm_dir @TOPOLOGY@] type pdb waitfor all]
+mol addfile [file join $knotmm_dir @TRAJECTORY@] type dcd first 0 last -1 step 1 waitfor all
+set knotmm_beads [atomselect $knotmm_mol all]
+$knotmm_beads global
+$knotmm_beads set radius 5.0
+mol delrep 0 $knotmm_mol
 mol representation VDW 1.0 16
 mol color ResID
 mol material AOChalky
-mol addrep top
+mol addrep $knotmm_mol
 mol representation Bonds 2.0 12
 mol color ResID
-mol addrep top
+mol addrep $knotmm_mol
 display projection Orthographic
 axes location LowerLeft
+# Follow the chain: VMD sets vmd_frame(molid) at every frame change; the trace moves the
+# molecule's centre (molinfo ... set center) to the centre of the beads in that frame.
+proc knotmm_centre {args} {
+    global knotmm_mol knotmm_beads
+    $knotmm_beads frame [molinfo $knotmm_mol get frame]
+    molinfo $knotmm_mol set center [list [measure center $knotmm_beads]]
+}
+proc knotmm_follow {{how on}} {
+    global knotmm_mol vmd_frame
+    trace remove variable vmd_frame($knotmm_mol) write knotmm_centre
+    if {$how eq "on"} {
+        trace add variable vmd_frame($knotmm_mol) write knotmm_centre
+        knotmm_centre
+    }
+}
 animate goto 0
+knotmm_follow on
 """
+
+
+def _tcl_word(text: str) -> str:
+    """``text`` as one Tcl word, in double quotes with Tcl's special characters escaped."""
+    escaped = re.sub(r'([\\$\[\]"])', r"\\\1", str(text))
+    return '"' + escaped.replace("\n", "\\n").replace("\r", "\\r").replace("\t", "\\t") + '"'
+
+
+def vmd_script(directory, version: str) -> str:
+    """The text of ``view.vmd`` for the run directory ``directory``.
+
+    The script finds its files relative to itself where VMD says where it is (``source``)
+    and else in ``directory`` as written here (absolute) or the current directory
+    (``vmd -e`` gives a script no name), so it works from any directory, and from a run
+    directory that was moved when it is opened there.
+    """
+    text = VMD_SCRIPT.replace("@VERSION@", version)
+    text = text.replace("@TOPOLOGY@", TOPOLOGY_FILE).replace("@TRAJECTORY@", TRAJECTORY_FILE)
+    return text.replace("@RUN_DIR@", _tcl_word(os.path.abspath(directory)))
 
 
 class OutputError(KnotmmError, OSError):
@@ -225,10 +286,10 @@ def run_status(directory) -> str | None:
 
 
 def write_vmd_script(directory, version: str) -> None:
-    """Write ``view.vmd`` (atomically)."""
+    """Write ``view.vmd`` (atomically): :func:`vmd_script`."""
     from knotmm.io.atomic import write_text_atomic
 
-    write_text_atomic(Path(directory) / VMD_FILE, VMD_SCRIPT.format(version=version))
+    write_text_atomic(Path(directory) / VMD_FILE, vmd_script(directory, version))
 
 
 # -- preparing and owning a directory -------------------------------------------------------

@@ -3,7 +3,10 @@
 Any knot can be drawn as a closed braid (``docs/model.md``, "Starting shapes"). The
 experiments' knots (3_1, 4_1, 5_1, 5_2, 6_1, 7_1) have built-in braid words
 (:data:`BUILTIN_BRAIDS`); every other tabulated knot (up to 13 crossings) comes from the
-optional ``database_knotinfo`` package, read once and cached.
+optional ``database_knotinfo`` package, read once and cached. Knots with a common name
+(trefoil, figure-eight, cinquefoil, ...: :data:`COMMON_NAMES`) can be named by it wherever a
+table name is accepted; :func:`resolve_name` is the one place that turns a name into a
+table name.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from knotmm.knots.chirality import normalise_knot_name
 
 __all__ = [
     "BUILTIN_BRAIDS",
+    "COMMON_NAMES",
     "TORUS_NAMES",
     "knotinfo_available",
     "knotinfo_table",
@@ -25,6 +29,8 @@ __all__ = [
     "name_order",
     "named_knot_word",
     "normalise_name",
+    "resolve_name",
+    "suggest_names",
     "symmetry_type",
 ]
 
@@ -41,6 +47,43 @@ BUILTIN_BRAIDS: dict[str, tuple[int, ...]] = {
 
 #: Amphichiral knots among the built-in ones (no handedness to report).
 _BUILTIN_AMPHICHIRAL = frozenset({"4_1"})
+
+#: Common names of knots -> their table names (Rolfsen's table, as KnotInfo names them).
+COMMON_NAMES: dict[str, str] = {
+    "unknot": "0_1",
+    "trefoil": "3_1",
+    "figure-eight": "4_1",
+    "cinquefoil": "5_1",
+    "three-twist": "5_2",
+    "stevedore": "6_1",
+    "miller-institute": "6_2",
+    "septafoil": "7_1",
+}
+
+#: Other spellings of the common names.
+_OTHER_SPELLINGS: dict[str, str] = {
+    "figure8": "figure-eight",
+    "figure-of-eight": "figure-eight",
+    "pentafoil": "cinquefoil",
+    "solomon's-seal": "cinquefoil",
+    "heptafoil": "septafoil",
+}
+
+
+def _name_key(text: str) -> str:
+    """A common name as compared: lower case, letters and digits only, no word 'knot'.
+
+    ``'Figure-Eight knot'`` -> ``'figureeight'``, ``"stevedore's knot"`` -> ``'stevedore'``.
+    """
+    text = re.sub(r"[\s_-]+knot$", "", str(text).strip().lower()).replace("'s", "")
+    return re.sub(r"[^a-z0-9]", "", text)
+
+
+#: Compared spelling -> (the common name, its table name).
+_COMMON_KEYS: dict[str, tuple[str, str]] = {
+    **{_name_key(k): (k, v) for k, v in COMMON_NAMES.items()},
+    **{_name_key(k): (v, COMMON_NAMES[v]) for k, v in _OTHER_SPELLINGS.items()},
+}
 
 #: Names topoly gives the torus knots of the study (checked in the tests).
 TORUS_NAMES = {
@@ -63,6 +106,17 @@ def knotinfo_available() -> bool:
 def normalise_name(name: str) -> str:
     """'5_2', '5.2', ' 5_2 ' -> '5_2'; '11a367' -> '11a_367' (KnotInfo spelling)."""
     return normalise_knot_name(str(name).strip())
+
+
+def resolve_name(name: str) -> str:
+    """The table name of a knot name: a common name or a spelling of a table name.
+
+    ``'trefoil'``, ``'Trefoil knot'`` -> ``'3_1'``; ``'figure8'`` -> ``'4_1'``; ``'5.2'`` ->
+    ``'5_2'``; ``'11a367'`` -> ``'11a_367'``. A name that is neither comes back normalised
+    (:func:`normalise_name`), to be looked up (and refused) by :func:`named_knot_word`.
+    """
+    common = _COMMON_KEYS.get(_name_key(name))
+    return common[1] if common else normalise_name(name)
 
 
 @functools.lru_cache(maxsize=1)
@@ -119,7 +173,8 @@ def named_knot_word(name: str, key: str = "name") -> tuple[str, tuple[int, ...],
     Parameters
     ----------
     name : str
-        Knot name, ``"5_2"`` (Rolfsen) or ``"11a_367"`` (KnotInfo, 11-13 crossings).
+        Knot name, ``"5_2"`` (Rolfsen), ``"11a_367"`` (KnotInfo, 11-13 crossings) or a
+        common name (``"trefoil"``, :data:`COMMON_NAMES`).
     key : str, optional
         Argument name used in error messages.
 
@@ -135,11 +190,12 @@ def named_knot_word(name: str, key: str = "name") -> tuple[str, tuple[int, ...],
     Raises
     ------
     TemplateError
-        For a name in neither table; says whether ``database_knotinfo`` is missing.
+        For a name in neither table, with the names it is close to
+        (:func:`suggest_names`); says whether ``database_knotinfo`` is missing.
     """
     if not isinstance(name, str) or not name.strip():
-        raise TemplateError(f"{key}={name!r}: expected a knot name such as '5_2'")
-    norm = normalise_name(name)
+        raise TemplateError(f"{key}={name!r}: expected a knot name such as '5_2' or 'trefoil'")
+    norm = resolve_name(name)
     if norm in BUILTIN_BRAIDS:
         return norm, BUILTIN_BRAIDS[norm], "built-in"
     if norm == "0_1":
@@ -151,19 +207,69 @@ def named_knot_word(name: str, key: str = "name") -> tuple[str, tuple[int, ...],
     if norm in table:
         return norm, table[norm]["word"], "KnotInfo"
     builtin = ", ".join(BUILTIN_BRAIDS)
+    hint = suggest_names(norm, list(table) or list(BUILTIN_BRAIDS), complete=bool(table))
     if not knotinfo_available():
+        if hint and not re.fullmatch(r"\d+[an]?_\d+", norm):  # a misspelt common name
+            raise TemplateError(f"{key}={name!r} is not a knot name{hint}")
         raise TemplateError(
             f"{key}={name!r} is not a built-in knot ({builtin}); other knots need the optional "
             "package database_knotinfo: pip install 'knotmm[knots]'"
         )
-    import difflib  # noqa: PLC0415
-
-    close = difflib.get_close_matches(norm, list(table), n=1)
-    hint = f"; did you mean '{close[0]}'?" if close else ""
     raise TemplateError(
         f"{key}={name!r} is not in the KnotInfo tables (knots up to 13 crossings, named like "
-        f"'5_2' or '11a_367'){hint}"
+        f"'5_2' or '11a_367', or by a common name such as 'trefoil'){hint}"
     )
+
+
+def suggest_names(name: str, known: list[str], complete: bool = True) -> str:
+    """What to suggest for a knot name that is in no table ('' when nothing is close).
+
+    Parameters
+    ----------
+    name : str
+        The name as :func:`resolve_name` left it.
+    known : list of str
+        The table names that exist.
+    complete : bool, optional
+        Whether ``known`` holds every tabulated knot (KnotInfo) or only the built-in ones;
+        only a complete table can say which knots of a crossing number exist.
+
+    Returns
+    -------
+    str
+        ``"; the knots with 5 crossings are 5_1, 5_2"`` for a table-style name (a name
+        with the same crossing number first), ``"; did you mean 'trefoil' (3_1)?"`` for a
+        misspelt common name, else the closest table name or ''.
+    """
+    import difflib  # noqa: PLC0415
+
+    m = re.fullmatch(r"(\d+)([an]?)_(\d+)", name)
+    if m and complete:
+        crossings, letter = int(m.group(1)), m.group(2)
+        same = [n for n in known if name_order(n)[0] == crossings]
+        if not same:
+            if crossings < 3:
+                return "; only the unknot (0_1) has fewer than 3 crossings: the first knot is 3_1"
+            largest = max((name_order(n)[0] for n in known), default=0)
+            return f"; the tables hold knots of 3 to {largest} crossings"
+        if letter:
+            same = [n for n in same if name_order(n)[1] == letter] or same
+        else:  # 11_5: KnotInfo names knots of 11 and more crossings 11a_5 and 11n_5
+            alike = [n for n in same if name_order(n)[2] == int(m.group(3))]
+            if alike:
+                return f"; did you mean {' or '.join(repr(n) for n in alike)}?"
+        listing = ", ".join(same) if len(same) <= 8 else (
+            f"{same[0]} ... {same[-1]} ({len(same)} knots)"
+        )
+        return f"; the knots with {crossings} crossings are {listing}"
+    if m:
+        return ""
+    close = difflib.get_close_matches(_name_key(name), list(_COMMON_KEYS), n=1, cutoff=0.6)
+    if close:
+        common, table_name = _COMMON_KEYS[close[0]]
+        return f"; did you mean '{common}' ({table_name})?"
+    close = difflib.get_close_matches(name, known, n=1)
+    return f"; did you mean '{close[0]}'?" if close else ""
 
 
 def symmetry_type(name: str) -> str:
