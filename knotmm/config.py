@@ -80,10 +80,11 @@ def resolve_stepping(cfg) -> tuple[str, float]:
     """The integrator and step a run uses: ``run.integrator`` and ``run.timestep`` resolved.
 
     ``integrator = "auto"`` is ``rk23`` for deterministic runs (``run.peclet = inf``; a run
-    then takes ``rkc2`` instead when the chain is stiff) and ``leimkuhler_matthews``
+    then takes ``rkc2`` instead when the chain is stiff) and ``ito_heun_adaptive``
     (:data:`knotmm.dynamics.registry.AUTO_BROWNIAN`) at a finite Peclet number; an unset
     ``timestep`` is the integrator's default step at finite Pe (0.01 for
-    leimkuhler_matthews, 0.002 for ito_heun and euler_maruyama), else 0.01
+    leimkuhler_matthews; 0.002 for ito_heun, euler_maruyama and, as its first step,
+    ito_heun_adaptive), else 0.01
     (:func:`knotmm.dynamics.registry.resolve`, which holds the policy). So setting
     ``run.peclet`` alone gives a sound Brownian run.
 
@@ -101,7 +102,7 @@ def resolve_stepping(cfg) -> tuple[str, float]:
 
 def resolve_tolerance(cfg, integrator: str) -> float:
     """``run.tolerance`` for ``integrator`` (a resolved name): as given, or its default in d."""
-    return registry.resolve_tolerance(integrator, cfg["run.tolerance"])
+    return registry.resolve_tolerance(integrator, cfg["run.tolerance"], cfg["run.peclet"])
 
 
 #: Every key a run file may hold, by table. Defaults are the study's parameters.
@@ -149,19 +150,20 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "time stepper: auto (default: rk23 at run.peclet = inf, or rkc2 when the chain is "
             f"stiff; {registry.AUTO_BROWNIAN} at finite Pe), rk23 (adaptive), rkc2 "
             "(adaptive, for very stiff chains), heun, midpoint, euler; finite run.peclet: "
-            "leimkuhler_matthews (timestep 0.01, 6-12x faster than ito_heun), ito_heun "
+            "ito_heun_adaptive (adaptive, survives close contacts), leimkuhler_matthews "
+            "(timestep 0.01; breaks down at Pe <~ 1), ito_heun "
             "(timestep 0.002) or euler_maruyama",
             choices=(registry.AUTO, *registry.NAMES),
         ),
         "timestep": Key(
             "float", None, "step in tau_d (fixed-step and Brownian integrators); the first "
             "step of an adaptive one; default 0.01 (at finite run.peclet: 0.01 for "
-            "leimkuhler_matthews, 0.002 for ito_heun and euler_maruyama)",
+            "leimkuhler_matthews, 0.002 for ito_heun, euler_maruyama and ito_heun_adaptive)",
             0.0, None, True,
         ),
         "tolerance": Key(
             "float", None, "adaptive integrators: local error per step, in d; default 1e-4 "
-            "(ito_heun_adaptive: 0.02, its error estimate carries the noise displacement)",
+            "(ito_heun_adaptive: 0.02, times sqrt(10 / Pe) above Pe = 10)",
             0.0, None, True,
         ),
         "max_timestep": Key("float", 1.0, "adaptive integrators: largest step, in tau_d", 0.0,

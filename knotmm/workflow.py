@@ -32,7 +32,7 @@ import numpy as np
 
 from knotmm import __version__
 from knotmm.config import RunConfig, resolve_stepping, resolve_tolerance
-from knotmm.dynamics.registry import AUTO, REGISTRY, auto_deterministic
+from knotmm.dynamics.registry import AUTO, AUTO_STIFFNESS, REGISTRY, auto_deterministic
 from knotmm.engine.checkpoint import CheckpointReporter, read_checkpoint
 from knotmm.engine.interrupt import StopRequested, describe_signal, stop_signal
 from knotmm.engine.knot_checks import (
@@ -188,7 +188,11 @@ def run(
     start_worker()  # topoly's start-up in the knot worker overlaps building the run
     directory = Path(directory if directory is not None else cfg["output.directory"])
     name, timestep = resolve_stepping(cfg)  # run.toml records what is used, not "auto"
-    by_stiffness = cfg["run.integrator"] == AUTO and not math.isfinite(cfg["run.peclet"])
+    chosen = cfg["run.integrator"] == AUTO
+    by_stiffness = chosen and not math.isfinite(cfg["run.peclet"])
+    choice_reason = (f"auto at run.peclet = {cfg['run.peclet']:g}: {name}, adaptive Brownian "
+                     f"steps (fixed steps break down at close steric contacts at Pe <~ 1)"
+                     if chosen and not by_stiffness else None)
     cfg = cfg.replace({"run.integrator": name, "run.timestep": timestep,
                        "run.tolerance": resolve_tolerance(cfg, name)})
     integrator_from_config(cfg)  # checks the integrator against run.peclet before the template
@@ -203,6 +207,10 @@ def run(
         stiffness = sim.stiffness()
         choice = auto_deterministic(stiffness)
         log.info("run.integrator auto: stiffness %.4g / tau_d -> %s", stiffness, choice)
+        choice_reason = (f"auto at run.peclet = inf: {choice}, the chain's stiffness (RKC's "
+                         f"spectral radius at the start) is {stiffness:.4g} / tau_d "
+                         f"({'above' if choice == 'rkc2' else 'at most'} "
+                         f"{AUTO_STIFFNESS:g})")
         if choice != name:
             cfg = cfg.replace({"run.integrator": choice})
             # the engine already chosen (and warned about) when the new integrator has it
@@ -224,6 +232,7 @@ def run(
             "n_beads": int(template.positions.shape[0]),
             "engine": sim.engine,
             "integrator": sim.integrator.describe(),
+            **({"integrator_choice": choice_reason} if choice_reason else {}),
             "platform": sim.platform_name,
             "frame_interval": cfg["output.frame_interval"],
             "start_z": float(sim.positions[:, 2].mean()),

@@ -24,10 +24,11 @@ them by the same bridge, or adding fresh increments beyond them). So the noise a
 one Brownian path sampled at the accepted times, not a path biased towards the increments
 that were accepted: on a stiff anharmonic dimer at tolerance 0.01 d, drawing fresh noise
 after each rejection halves the bond-length variance, while the queue keeps it within 0.2 %
-of Boltzmann's (``tests/dynamics/test_adaptive_brownian.py``). (The path is one path given the steps a run takes; a run at another tolerance takes
-other steps, and draws its bridges in another order, so it samples another path.) ``B`` is
-taken at the step's start (the Ito equation, which needs no drift correction
-since ``div mu = 0``; :mod:`knotmm.dynamics.brownian`), from the noise method of
+of Boltzmann's (``tests/dynamics/test_adaptive_brownian.py``). The path is one path given
+the steps a run takes; a run at another tolerance takes other steps and draws its bridges in
+another order, so it samples another path. ``B`` is taken at the step's start (the Ito
+equation, which needs no drift correction since ``div mu = 0``;
+:mod:`knotmm.dynamics.brownian`), from the noise method of
 :class:`knotmm.dynamics.noise.NoiseGenerator` (Cholesky; Lanczos above 300 beads).
 
 **Step control.** The error is the largest per-bead displacement of ``err`` over
@@ -54,6 +55,10 @@ __all__ = ["AdaptiveItoHeun", "WienerQueue"]
 
 #: The error estimate's order in the step, for the controller's exponents.
 ERROR_ORDER = 1.5
+#: The default tolerance, in d (the registry's ``default_tolerance`` for this integrator): the
+#: largest that showed no bias against a Metropolis Monte Carlo at Pe = 0.5-10 (0.05 shortened
+#: the bond-length spread by 0.9-1.4 % at Pe = 10; ``benchmarks/bench_brownian_equilibrium.py``).
+DEFAULT_TOLERANCE = 0.02
 
 
 class WienerQueue:
@@ -137,7 +142,7 @@ class AdaptiveItoHeun(StochasticIntegrator):
 
     def __init__(self, timestep: float, peclet: float = math.inf, seed: int | None = None,
                  noise: str | NoiseFunction = "auto", lanczos_tolerance: float = 1e-6,
-                 rng: np.random.Generator | None = None, tolerance: float = 0.01,
+                 rng: np.random.Generator | None = None, tolerance: float = DEFAULT_TOLERANCE,
                  max_timestep: float = 0.05, min_timestep: float = 1e-7):
         super().__init__(timestep, peclet, seed, noise, lanczos_tolerance, rng)
         if not tolerance > 0:

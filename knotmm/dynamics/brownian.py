@@ -43,8 +43,10 @@ weak order 2 where the mobility is constant (additive noise) and second order in
 deterministic limit; for the position-dependent RPY mobility it is weak order 1 with a much
 smaller error constant on stiff modes (see :class:`ItoHeun`). ``leimkuhler_matthews`` keeps
 the stationary distribution of stiff harmonic modes exact up to its stability limit (see
-:class:`LeimkuhlerMatthews`). Adaptive error control does not carry over to these
-equations: finite ``Pe`` always runs with a fixed step.
+:class:`LeimkuhlerMatthews`). These three take a fixed step; the adaptive Brownian integrator
+(an embedded Euler-Heun pair whose rejected noise is kept and split by Brownian bridges, what
+``run.integrator = "auto"`` picks at finite ``Pe``) is
+:class:`knotmm.dynamics.adaptive_brownian.AdaptiveItoHeun`.
 
 Step size
 ---------

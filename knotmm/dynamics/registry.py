@@ -22,7 +22,7 @@ Examples
 >>> resolve("auto", float("inf"), None)
 ('rk23', 0.01)
 >>> resolve("auto", 2.0, None)
-('leimkuhler_matthews', 0.01)
+('ito_heun_adaptive', 0.002)
 >>> REGISTRY["rkc2"].adaptive
 True
 """
@@ -68,8 +68,9 @@ DEFAULT_TIMESTEP = 0.01
 DEFAULT_BROWNIAN_TIMESTEP = 0.002
 #: ``run.tolerance`` of the deterministic adaptive integrators when none is given, in d.
 DEFAULT_TOLERANCE = 1e-4
-#: What ``"auto"`` is at a finite Peclet number.
-AUTO_BROWNIAN = "leimkuhler_matthews"
+#: What ``"auto"`` is at a finite Peclet number: adaptive steps survive the close steric
+#: contacts that break fixed steps at Pe <~ 1 (``benchmarks/README.md``, issue 20).
+AUTO_BROWNIAN = "ito_heun_adaptive"
 #: Above this fixed step (tau_d) a Brownian run warns: stiff bond modes go unstable.
 _BROWNIAN_STEP_WARNING = 0.01
 #: The engines (``run.engine`` values other than ``"auto"``): the integrator classes of
@@ -162,7 +163,7 @@ REGISTRY: dict[str, IntegratorInfo] = {
         IntegratorInfo(
             "leimkuhler_matthews", _BROWN, "LeimkuhlerMatthews", 1, False, True,
             "Leimkuhler-Matthews, fixed step, one velocity a step; Boltzmann bond "
-            "fluctuations at 0.01 tau_d; the default at finite Pe",
+            "fluctuations at 0.01 tau_d; breaks down at close contacts at Pe <~ 1",
             0.01, engines=BOTH_ENGINES,
         ),
         IntegratorInfo(
@@ -174,7 +175,7 @@ REGISTRY: dict[str, IntegratorInfo] = {
             "ito_heun_adaptive", "knotmm.dynamics.adaptive_brownian", "AdaptiveItoHeun", 1,
             True, True,
             "Euler-Heun pair, adaptive step (PI control, rejected noise kept by Brownian "
-            "bridges); survives close steric contacts at Pe <= 1",
+            "bridges); survives close steric contacts at Pe <= 1; the default at finite Pe",
             DEFAULT_BROWNIAN_TIMESTEP, engines=BOTH_ENGINES, default_tolerance=0.02,
         ),
     )
@@ -213,10 +214,12 @@ def resolve(integrator: str, peclet: float, timestep: float | None) -> tuple[str
     """The integrator and step a run uses: ``"auto"`` and an unset step resolved.
 
     ``"auto"`` is ``rk23`` at ``Pe = inf`` (the run then measures the chain's stiffness and
-    may take ``rkc2`` instead: :func:`auto_deterministic`) and ``leimkuhler_matthews`` at a
-    finite Peclet number: at its 0.01 tau_d it keeps the bond-length fluctuations within
-    0.4 % of Boltzmann's for 6-12x the simulated time per wall second of ``ito_heun`` at
-    0.002 (``benchmarks/README.md``). An
+    may take ``rkc2`` instead: :func:`auto_deterministic`) and ``ito_heun_adaptive`` at a
+    finite Peclet number: its steps shrink at close steric contacts, where every fixed step
+    of 0.01 tau_d breaks down at Pe <~ 1 (``leimkuhler_matthews`` at 0.01 failed 3 runs of 3
+    at Pe = 1, N = 90), and at its default tolerance (0.02 d) the bond length, bending and
+    1-3 distance statistics agree with a Metropolis Monte Carlo within 0.5 % at Pe = 0.5-10
+    (``benchmarks/README.md``). An
     unset step is the integrator's ``default_timestep`` at finite Pe
     (:data:`DEFAULT_BROWNIAN_TIMESTEP` for the Brownian ones) and :data:`DEFAULT_TIMESTEP`
     at ``Pe = inf`` (where a Brownian integrator has no noise and is its deterministic
@@ -249,16 +252,28 @@ def resolve(integrator: str, peclet: float, timestep: float | None) -> tuple[str
     return name, float(timestep)
 
 
-def resolve_tolerance(name: str, tolerance: float | None) -> float:
+#: Above this Peclet number the adaptive Brownian default tolerance shrinks as sqrt(kT).
+BROWNIAN_TOLERANCE_PECLET = 10.0
+
+
+def resolve_tolerance(name: str, tolerance: float | None, peclet: float = math.inf) -> float:
     """``run.tolerance`` resolved: the value given, or the integrator's default (in d).
 
     An unset tolerance is :data:`DEFAULT_TOLERANCE` (1e-4 d) for the deterministic adaptive
-    integrators and the entry's ``default_tolerance`` for the adaptive Brownian one, whose
-    error estimate carries the noise displacement (``knotmm.dynamics.adaptive_brownian``).
+    integrators. For the adaptive Brownian one, whose error estimate carries the noise
+    displacement (``knotmm.dynamics.adaptive_brownian``), it is the entry's
+    ``default_tolerance`` (0.02 d) up to ``Pe = 10`` and ``0.02 sqrt(10 / Pe)`` above: the
+    tolerance has to stay well below the thermal spread of the stiffest bonds, ``sqrt(kT / B)``
+    (0.045 d at Pe = 10, where 0.02 showed no bias against a Monte Carlo and 0.05 shortened the
+    bond-length spread by 1 %), and that spread shrinks as ``sqrt(1 / Pe)``.
     """
     if tolerance is not None:
         return float(tolerance)
-    return _info(name).default_tolerance
+    info = _info(name)
+    if info.brownian and info.adaptive and math.isfinite(float(peclet)):
+        scale = min(1.0, math.sqrt(BROWNIAN_TOLERANCE_PECLET / float(peclet)))
+        return info.default_tolerance * scale
+    return info.default_tolerance
 
 
 def make(
@@ -314,7 +329,7 @@ def make(
             raise ConfigError(f"run.timestep = {timestep!r}: must be > 0 (in tau_d)")
         adaptive = {}
         if info.adaptive:
-            adaptive = dict(tolerance=resolve_tolerance(name, tolerance),
+            adaptive = dict(tolerance=resolve_tolerance(name, tolerance, peclet),
                             max_timestep=max_timestep, min_timestep=min_timestep)
         return cls(
             timestep, peclet=peclet, seed=seed, noise=noise, lanczos_tolerance=lanczos_tolerance,
@@ -347,8 +362,10 @@ def integrator_from_config(cfg: Mapping):
       ``run.lanczos_tolerance``;
     * a deterministic one at ``run.peclet = inf`` gets ``run.timestep``, ``run.tolerance``,
       ``run.max_timestep`` and ``run.min_timestep``;
-    * a deterministic one at a finite ``run.peclet`` is a :class:`ConfigError` (adaptive
-      error control does not apply to the stochastic equation).
+    * the adaptive Brownian one (``ito_heun_adaptive``) gets both: the noise settings and
+      ``run.tolerance`` (:func:`resolve_tolerance`), ``run.max_timestep``, ``run.min_timestep``;
+    * a deterministic one at a finite ``run.peclet`` is a :class:`ConfigError` (its error
+      control knows nothing of the noise).
 
     Parameters
     ----------

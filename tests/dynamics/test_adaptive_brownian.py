@@ -131,3 +131,21 @@ def test_resume_from_state_repeats_the_steps_exactly(noise):
     for _ in range(30):
         got.append(again.step(_rhs, got[-1])[0])
     np.testing.assert_array_equal(np.array(got), np.array(want))
+
+
+def test_default_tolerance_is_the_registry_one():
+    from knotmm.dynamics.adaptive_brownian import DEFAULT_TOLERANCE
+    from knotmm.dynamics.registry import REGISTRY, resolve_tolerance
+
+    assert REGISTRY["ito_heun_adaptive"].default_tolerance == DEFAULT_TOLERANCE
+    assert resolve_tolerance("ito_heun_adaptive", None) == DEFAULT_TOLERANCE
+    assert resolve_tolerance("rk23", None) == 1e-4
+
+
+def test_default_tolerance_follows_the_thermal_length_above_pe_10():
+    from knotmm.dynamics.registry import resolve_tolerance
+
+    assert resolve_tolerance("ito_heun_adaptive", None, 1.0) == 0.02
+    assert resolve_tolerance("ito_heun_adaptive", None, 10.0) == 0.02
+    assert resolve_tolerance("ito_heun_adaptive", None, 40.0) == pytest.approx(0.01)
+    assert resolve_tolerance("ito_heun_adaptive", 0.05, 40.0) == 0.05  # as given

@@ -423,9 +423,11 @@ def test_integrator_from_config():
     # a Brownian integrator at Pe = inf is its deterministic counterpart
     em = integrator_from_config(RunConfig.from_dict({"run": {"integrator": "euler_maruyama"}}))
     assert em.kT == 0.0
-    # finite Pe alone: integrator "auto" and no timestep give leimkuhler_matthews, 0.01 tau_d
+    # finite Pe alone: integrator "auto" and no timestep or tolerance give ito_heun_adaptive,
+    # first step 0.002 tau_d, tolerance 0.02 d
     auto = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 2.0}}))
-    assert auto.name == "leimkuhler_matthews" and auto.timestep == 0.01 and auto.kT == 0.5
+    assert (auto.name, auto.timestep, auto.kT, auto.tolerance) == (
+        "ito_heun_adaptive", 0.002, 0.5, 0.02)
     # ito_heun without a step gets 0.002 tau_d; an explicit step is kept; a deterministic
     # auto run keeps rk23 and 0.01 tau_d
     heun = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 2.0,

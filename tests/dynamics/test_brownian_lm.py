@@ -106,7 +106,7 @@ def test_registry_entry_and_auto_at_finite_peclet():
     assert info.brownian and not info.adaptive and info.order == 1
     assert info.load() is LeimkuhlerMatthews and LeimkuhlerMatthews.name == NAME
     assert resolve(NAME, 2.0, None) == (NAME, 0.01)
-    assert resolve("auto", 2.0, None) == (NAME, 0.01)
+    assert resolve("auto", 2.0, None) == ("ito_heun_adaptive", 0.002)  # no longer the default
     integ = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 4.0,
                                                                 "integrator": NAME}}))
     assert isinstance(integ, LeimkuhlerMatthews) and integ.timestep == 0.01

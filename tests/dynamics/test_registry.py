@@ -101,12 +101,13 @@ def test_declared_order_on_a_linear_problem(name):
 
 def test_auto_policy_and_default_steps():
     assert resolve("auto", math.inf, None) == ("rk23", 0.01)
-    assert resolve("auto", 2.0, None) == ("leimkuhler_matthews", 0.01)
+    assert resolve("auto", 2.0, None) == ("ito_heun_adaptive", 0.002)
+    assert resolve("leimkuhler_matthews", 2.0, None) == ("leimkuhler_matthews", 0.01)
     assert resolve("ito_heun", 2.0, None) == ("ito_heun", 0.002)
     assert resolve("euler_maruyama", 2.0, None) == ("euler_maruyama", 0.002)
     assert resolve("ito_heun", math.inf, None) == ("ito_heun", 0.01)  # no noise: as heun
     assert resolve("heun", math.inf, None) == ("heun", 0.01)
-    assert resolve("auto", 2.0, 1e-3) == ("leimkuhler_matthews", 1e-3)
+    assert resolve("auto", 2.0, 1e-3) == ("ito_heun_adaptive", 1e-3)
     with pytest.raises(ConfigError, match="run.integrator = 'rk4'"):
         resolve("rk4", math.inf, None)
 

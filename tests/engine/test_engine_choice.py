@@ -81,7 +81,7 @@ def test_a_runs_noise_method_reaches_the_plugin(noise, beads, method):
                                "run": {"peclet": 2.0, "noise": noise,
                                        "lanczos_tolerance": 1e-7}})
     sim = Simulation.from_config(cfg)
-    assert sim.engine == "plugin" and sim.integrator.name == "leimkuhler_matthews"
+    assert sim.engine == "plugin" and sim.integrator.name == "ito_heun_adaptive"
     sim.step(1)
     rpy = sim.openmm_integrator
     assert rpy.getNoiseMethod() == method and rpy.getLanczosTolerance() == 1e-7
