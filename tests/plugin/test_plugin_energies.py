@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from openmm import unit
 import openmm
 import pytest
 import reference_model as rm
+from openmm import unit
 from plugin_helpers import plugin_context, positions_of
 
 from knotmm.dynamics.brownian import ItoHeun

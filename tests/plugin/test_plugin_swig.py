@@ -9,13 +9,12 @@ import numpy as np
 import openmm
 import openmm.app as app
 import pytest
+from plugin_helpers import plugin_context
 
 import knotmm.plugin as kp
 from knotmm.model.system import ChainModel, chain_system
 from knotmm.model.topology import bead_topology
 from knotmm.shapes.geometry import torus_knot
-
-from plugin_helpers import plugin_context
 
 SETTINGS = dict(error_tolerance=3e-5, kT=0.25, seed=11, min_step=2e-6, max_step=0.3, threads=2,
                 noise="lanczos", lanczos_tolerance=1e-5)
