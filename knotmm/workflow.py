@@ -69,6 +69,7 @@ from knotmm.io.rundir import (
     describe_os_error,
     prepare_directory,
     read_facts,
+    retire_stale_analysis,
     write_run_toml,
     write_vmd_script,
     writing,
@@ -505,6 +506,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
             record_checks(facts, watch)
         try:
             with _signals_held():  # a second Ctrl-C must not leave status = "running"
+                retire_stale_analysis(directory)  # an analysis made while it ran
                 write_run_toml(directory, cfg, facts)
         finally:
             lock.release()

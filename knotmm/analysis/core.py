@@ -36,8 +36,15 @@ from knotmm.analysis.topology import (
 )
 from knotmm.analysis.window import MIN_FRAMES, steady_window
 from knotmm.errors import ConfigError
+from knotmm.io.atomic import write_text_atomic
 from knotmm.io.run_data import RunData, load_run
-from knotmm.io.rundir import ANALYSIS_FILE, writing
+from knotmm.io.rundir import (
+    ANALYSIS_FILE,
+    ANALYSIS_RUNNING_KEY,
+    LOCK_FILE,
+    lock_owner,
+    writing,
+)
 
 __all__ = ["analyze", "analyze_run", "ANALYSIS_FILE"]
 
@@ -326,17 +333,60 @@ def analyze_run(
     -------
     AnalysisResult
         Its ``to_dict()`` is the content written to ``analysis.json``.
-    """
-    data = load_run(run_dir, frame_interval=frame_interval, topology=topology)
-    result = analyze(data, t_from=t_from, t_to=t_to, p=p, q=q, knot_samples=knot_samples)
-    out = Path(out_dir) if out_dir is not None else data.directory
-    path = out / ANALYSIS_FILE
-    with writing(out):  # a read-only or full directory: one line naming it, exit 2
-        out.mkdir(parents=True, exist_ok=True)
-        if plots:
-            from knotmm.analysis.plots import save_plots
 
-            result.plots = [f.name for f in save_plots(result, out)]
-        path.write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n")
-    logger.info("wrote %s", path)
+    A run still running (a live process holds its directory's lock) is analysed as far as
+    it got, with the note "run still running at t = ..." and the key ``run_still_running``
+    (time reached, the run's process id); the run removes that ``analysis.json`` when it
+    ends (:func:`knotmm.io.rundir.retire_stale_analysis`). If the run ends while it is
+    being analysed, it is analysed again, whole.
+    """
+    for attempt in range(2):
+        owner = lock_owner(_run_directory(run_dir))
+        data = load_run(run_dir, frame_interval=frame_interval, topology=topology)
+        if owner is None and data.directory is not None:
+            owner = lock_owner(data.directory)  # a run started (or resumed) meanwhile
+        if owner is not None:
+            _note_running(data, owner)
+        result = analyze(data, t_from=t_from, t_to=t_to, p=p, q=q, knot_samples=knot_samples)
+        if owner is not None:
+            result.extra[ANALYSIS_RUNNING_KEY] = {
+                "time": float(data.times[-1]), "process": owner or None,
+            }
+        out = Path(out_dir) if out_dir is not None else data.directory
+        path = out / ANALYSIS_FILE
+        # a read-only or full directory: one line naming it (OutputError; `knotmm analyze`
+        # checks the place first, exit 2, and reports a failure here with exit 3)
+        with writing(out):
+            out.mkdir(parents=True, exist_ok=True)
+            if plots:
+                from knotmm.analysis.plots import save_plots
+
+                result.plots = [f.name for f in save_plots(result, out)]
+            text = json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n"
+            write_text_atomic(path, text)  # never a half-written analysis.json
+        logger.info("wrote %s", path)
+        if owner is None or attempt or lock_owner(data.directory) is not None:
+            break
+        # the run ended while it was analysed, perhaps before this file was written (then
+        # its end could not retire it): analyse the whole run now
+        logger.info("the run in %s ended during its analysis: analysing it again", out)
     return result
+
+
+def _run_directory(run_dir) -> Path:
+    """The directory whose lock tells whether ``run_dir`` (a directory or a DCD) is live."""
+    path = Path(run_dir)
+    return path if path.is_dir() else path.parent
+
+
+def _note_running(data: RunData, owner: int) -> None:
+    """Say that the run is still running (in place of "the run stopped early")."""
+    t = float(data.times[-1]) if len(data.times) else 0.0
+    who = f"process {owner}" if owner else "a live process"
+    data.notes = [n for n in data.notes if "the run stopped early" not in n]
+    data.notes.insert(
+        0,
+        f"run still running at t = {t:g} tau_d ({who} holds {LOCK_FILE}): this analysis "
+        f"covers the {len(data.times)} frames written so far; the run removes it when it "
+        "ends: analyse again then",
+    )

@@ -100,21 +100,48 @@ def execute(args) -> int:
     from knotmm.analysis import analyze_run, format_table
     from knotmm.analysis.core import ANALYSIS_FILE
     from knotmm.analysis.replicas import is_sweep_directory
+    from knotmm.io.rundir import OutputError, WriteFault
 
     if is_sweep_directory(args.run):
         return _execute_sweep(args)
-    result = analyze_run(
-        args.run,
-        frame_interval=args.frame_interval,
-        topology=args.topology,
-        out_dir=args.out,
-        **_options(args),
-    )
+    _check_output(args)
+    try:
+        result = analyze_run(
+            args.run,
+            frame_interval=args.frame_interval,
+            topology=args.topology,
+            out_dir=args.out,
+            **_options(args),
+        )
+    except OutputError as exc:  # after the computation: a failure while writing, exit 3
+        if isinstance(exc, WriteFault):
+            raise
+        raise WriteFault(f"{exc}; the files written before it are kept") from None
     print(format_table(result))
     out = args.out or (result.data.directory if result.data else ".")
     files = [ANALYSIS_FILE, *result.plots]
     print(f"wrote {', '.join(files)} in {out}")
     return 0
+
+
+def _check_output(args) -> None:
+    """Check before the analysis that its output place can be written (one line, exit 2).
+
+    The place is ``--out`` (created if missing), else the run directory (the folder of a
+    DCD); a run path that does not exist is left to the loader's message.
+    """
+    from pathlib import Path
+
+    from knotmm.io.rundir import check_output_directory
+
+    if args.out is not None:
+        check_output_directory(args.out)
+        return
+    run = Path(args.run)
+    if run.is_dir():
+        check_output_directory(run, "RUN")
+    elif run.is_file():
+        check_output_directory(run.parent, "RUN")
 
 
 #: Columns of the per-point table printed for a sweep directory.

@@ -18,8 +18,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             'side by side (mode = "zip"); seeds = K runs K replicas of every point. Each '
             "point gets its own run directory in the sweep directory and is analysed; "
             "DIR/summary.csv has one row per point and DIR/ratios.png plots the time-scale "
-            "ratios. Running it again skips finished points and redoes the others. Exit "
-            "status 1 when some point failed."
+            "ratios. Running it again skips finished points and redoes the others. One sweep "
+            "at a time owns a sweep directory: a second one is refused (exit status 2, "
+            "naming the first one's process id). Exit status 1 when some point failed, 3 "
+            "when summary.csv cannot be written after points ran."
         ),
     )
     p.add_argument("sweep_file", metavar="SWEEP.toml", help="sweep file (TOML)")

@@ -8,6 +8,13 @@ resuming a run (:func:`truncate_dcd`), loading one (:func:`read_dcd`) and readin
 frame from a file (:mod:`knotmm.io.structure`) all use it.
 
 Coordinates in a knotmm DCD are in Angstrom (1 d = 10 A); this module does not convert.
+
+Every DCD opened through mdtraj is opened here, by :func:`c_path`: mdtraj's
+``DCDTrajectoryFile`` takes its file name as a C ``char*`` and converts a ``str`` with the
+ASCII codec, so a path with spaces is fine but one with ``ü`` or ``☃`` fails with
+``UnicodeEncodeError``, whatever the locale. The path is therefore handed over as the bytes
+the operating system uses for it (:func:`os.fsencode`), which a ``char*`` takes as they are
+and the C library passes to ``fopen``.
 """
 
 from __future__ import annotations
@@ -24,7 +31,15 @@ import numpy as np
 
 from knotmm.errors import TrajectoryFileError
 
-__all__ = ["DCDLayout", "dcd_layout", "quiet_c_stdout", "read_dcd", "truncate_dcd", "write_dcd"]
+__all__ = [
+    "DCDLayout",
+    "c_path",
+    "dcd_layout",
+    "quiet_c_stdout",
+    "read_dcd",
+    "truncate_dcd",
+    "write_dcd",
+]
 
 #: Bytes of one unit-cell record (4-byte marker, six float64, 4-byte marker).
 _CELL_BYTES = 56
@@ -140,6 +155,23 @@ def truncate_dcd(path, n_frames: int) -> None:
         os.fsync(fh.fileno())
 
 
+def c_path(path) -> bytes:
+    """A file name for C code that opens files (mdtraj's DCD plugin): the path's OS bytes.
+
+    mdtraj's ``DCDTrajectoryFile(filename)`` declares ``filename`` a ``char*``: a ``str`` is
+    encoded as ASCII (``UnicodeEncodeError`` for ``"ünïcødé ☃ run"``), ``bytes`` are taken as
+    they are. :func:`os.fsencode` gives the bytes the kernel knows the file by, for any path
+    and any locale (LANG=C.UTF-8, C, or none; undecodable names round-trip through Python's
+    ``surrogateescape``). Preferred over a temporary ASCII-named link, which needs a
+    writable temporary directory on the same file system (a hard link) or leaves a link
+    behind when the process is killed, and over a ``chdir`` and a relative name, which
+    changes the whole process's working directory under its other threads.
+
+    The path is made absolute, so that it does not depend on the working directory later.
+    """
+    return os.fsencode(os.path.abspath(os.fspath(path)))
+
+
 @contextlib.contextmanager
 def quiet_c_stdout():
     """Keep what C code prints to descriptor 1 (mdtraj's DCD plugin) off the terminal."""
@@ -183,11 +215,13 @@ def read_dcd(path) -> tuple[np.ndarray, list[str]]:
     except TrajectoryFileError:
         layout = None  # mdtraj's own message below says what is wrong
     try:
-        with quiet_c_stdout(), DCDTrajectoryFile(str(path)) as fh:
+        with quiet_c_stdout(), DCDTrajectoryFile(c_path(path)) as fh:
             xyz, _, _ = fh.read()
-    except OSError as exc:
+    except (OSError, UnicodeError) as exc:
+        # for a non-ASCII name mdtraj cannot even make its message (UnicodeDecodeError)
+        why = "mdtraj cannot open it" if isinstance(exc, UnicodeError) else exc
         raise TrajectoryFileError(
-            f"{path}: cannot be read as a DCD trajectory ({exc}); the file is empty, "
+            f"{path}: cannot be read as a DCD trajectory ({why}); the file is empty, "
             "truncated inside its header or not a DCD: re-run or give the right file"
         ) from None
     if layout is not None and layout.complete_frames < layout.claimed_frames:
@@ -225,7 +259,7 @@ def write_dcd(path, positions) -> None:
     os.close(fd)
     try:
         os.unlink(tmp)  # mdtraj refuses to overwrite
-        with quiet_c_stdout(), DCDTrajectoryFile(tmp, "w") as fh:
+        with quiet_c_stdout(), DCDTrajectoryFile(c_path(tmp), "w") as fh:
             fh.write(d_to_angstrom(x).astype(np.float32))
         os.replace(tmp, path)
     finally:

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from knotmm.errors import TemplateError, TrajectoryFileError
-from knotmm.io.dcd import dcd_layout, quiet_c_stdout
+from knotmm.io.dcd import c_path, dcd_layout, quiet_c_stdout
 from knotmm.io.rundir import TOPOLOGY_FILE, TRAJECTORY_FILE
 from knotmm.units import angstrom_to_d
 
@@ -178,7 +178,7 @@ def _read_dcd(mdtraj, path: Path, frame, topology, names):
     except TrajectoryFileError:
         claimed = 0  # mdtraj's message below says what is wrong
     try:
-        with quiet_c_stdout(), mdtraj.formats.DCDTrajectoryFile(os.fspath(path), "r") as fh:
+        with quiet_c_stdout(), mdtraj.formats.DCDTrajectoryFile(c_path(path), "r") as fh:
             n_frames = len(fh)
             n_atoms = _dcd_atoms(fh)
             if n_atoms is not None and n_atoms != top.n_atoms:

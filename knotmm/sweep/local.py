@@ -9,6 +9,7 @@ raises ``KeyboardInterrupt``. See ``docs/architecture.md``.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import time
@@ -30,16 +31,26 @@ def run_local(tasks, workers: int, on_result, func) -> None:
     again one at a time, each in a fresh process, so only the point that crashes it fails.
     A worker that ended because of Ctrl-C stops the whole sweep (KeyboardInterrupt).
     """
+    import gc
+
     executors: list = []
     try:
         lost = _run_pool(tasks, workers, on_result, func, executors)
         for task in lost:
             if _run_pool([task], 1, on_result, func, executors):
                 on_result(lost_result(task["name"], _DIED))
-    except BaseException:
+    except BaseException as exc:
         for executor in executors:
             _abort_executor(executor)
+        if isinstance(exc, KeyboardInterrupt):
+            exc.__traceback__ = None  # it would keep the pools' frames alive; it needs none
         raise
+    finally:
+        # A sweep stopped later exits at once (os._exit in knotmm.cli.main): free the pools
+        # now, so that their semaphores are unlinked, rather than left for multiprocessing's
+        # resource tracker to warn about ("leaked semaphore objects") on the terminal.
+        executors.clear()
+        gc.collect()
 
 
 def _run_pool(tasks, workers: int, on_result, func, executors: list) -> list[dict]:
@@ -52,9 +63,11 @@ def _run_pool(tasks, workers: int, on_result, func, executors: list) -> list[dic
         max_workers=max(1, min(workers, len(tasks))),
         mp_context=multiprocessing.get_context("spawn"),
         initializer=_worker_init,
+        initargs=(os.getpid(),),
     )
     executors.append(executor)
-    futures = {executor.submit(func, t): t for t in tasks}
+    with _children_ignore_sigint():  # submit starts the worker processes
+        futures = {executor.submit(func, t): t for t in tasks}
     processes = list(getattr(executor, "_processes", {}).values())
     for fut in as_completed(futures):
         task = futures[fut]
@@ -70,6 +83,31 @@ def _run_pool(tasks, workers: int, on_result, func, executors: list) -> list[dic
     if lost and any(p.exitcode == INTERRUPT_EXIT for p in processes):
         raise KeyboardInterrupt  # Ctrl-C reached the workers before this process
     return lost
+
+
+@contextlib.contextmanager
+def _children_ignore_sigint():
+    """Start worker processes with SIGINT ignored until their initializer handles it.
+
+    A spawned worker imports for a second before :func:`_worker_init` installs its handler;
+    a SIGINT then (Ctrl-C on the terminal, or the parent stopping the sweep) would end it
+    with Python's KeyboardInterrupt traceback. An ignored signal stays ignored across
+    ``exec``, so SIGINT is ignored in this process while it starts them (a few
+    milliseconds; a Ctrl-C in that instant is lost, the next one stops the sweep). Only
+    from the main thread (the only one that may change a handler).
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT,
+                      previous if previous is not None else signal.default_int_handler)
 
 
 def _abort_executor(executor) -> None:
@@ -149,7 +187,7 @@ def _on_stop(signum, frame):  # pragma: no cover - runs in the worker processes
     raise KeyboardInterrupt
 
 
-def _worker_init() -> None:  # pragma: no cover - runs in the worker processes
+def _worker_init(parent: int | None = None) -> None:  # pragma: no cover - in the workers
     """Initialise a local worker process: quiet logging, Agg backend, one thread each.
 
     SIGINT (Ctrl-C on the terminal, or sent by the parent when the sweep is stopped)
@@ -164,7 +202,11 @@ def _worker_init() -> None:  # pragma: no cover - runs in the worker processes
     os.environ.setdefault("MPLBACKEND", "Agg")
     signal.signal(signal.SIGINT, _on_stop)
     # a worker whose parent died (killed) would wait for work forever: leave instead
-    parent = os.getppid()
+    # (``parent`` is the sweep's pid, passed in: one killed while this worker was starting
+    # has already left it to init, and os.getppid() here would name init)
+    parent = os.getppid() if parent is None else parent
+    if os.getppid() != parent:
+        os._exit(1)
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
 
 

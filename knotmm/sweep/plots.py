@@ -25,6 +25,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from knotmm.io.atomic import write_atomic
+
 __all__ = ["plot_ratios", "plot_shape", "save_sweep_plots", "RATIO_PLOT", "SHAPE_PLOT"]
 
 #: Points whose vortex-knot fit has R^2 below this are drawn as open markers, not joined.
@@ -310,6 +312,7 @@ def save_sweep_plots(
         func(rows, x, axes=axes, group_by=groups, log_x=log_x)
         fig.suptitle(f"sweep over {title}: {directory.name}", fontsize=10)
         path = directory / name
-        fig.savefig(path, dpi=dpi)
+        # atomically: a full disk leaves the old plot (or none), never half a PNG
+        write_atomic(path, lambda fh, fig=fig: fig.savefig(fh, dpi=dpi, format="png"))
         written.append(path)
     return written

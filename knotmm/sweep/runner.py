@@ -15,7 +15,13 @@ Running a sweep (:func:`run_sweep`, ``knotmm sweep``) writes into the sweep dire
                          atomically after every point
 ``DIR/ratios.png``       tau_swirl/tau_sed and tau_rot/tau_sed against the swept key
 ``DIR/shape.png``        rho0 (with N l0 / (2 pi p)), C and V against the swept key
+``DIR/.knotmm.lock``     held (``flock``) by the sweep running in ``DIR``, with its process id
 =======================  ====================================================================
+
+One sweep at a time owns a sweep directory: a sweep holds its lock
+(:class:`~knotmm.io.rundir.RunLock`, the run directory's lock) from before its first look at
+the directory until it returns, and a second sweep on it is refused at once, naming the
+owner's process id (a lock left by a killed sweep is taken over).
 
 A point's ``status`` is ``finished`` (run finished and analysed), ``analysis_failed`` (run
 finished, analysis raised), ``fault`` (the dynamics broke down), ``error`` (the point could
@@ -36,6 +42,7 @@ same function :func:`~knotmm.sweep.point.run_point`, so both give the same numbe
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import sys
 import time
@@ -46,6 +53,14 @@ from typing import Any
 
 from knotmm.errors import ConfigError, RunDirectoryError
 from knotmm.io.atomic import write_text_atomic
+from knotmm.io.rundir import (
+    LOCK_FILE,
+    RunLock,
+    WriteFault,
+    describe_os_error,
+    lock_owner,
+    writing,
+)
 from knotmm.sweep.dask import dask_client, run_dask
 from knotmm.sweep.local import default_workers, run_local
 from knotmm.sweep.plan import plan_point
@@ -115,9 +130,16 @@ class SweepResult:
 
 
 def run_inline(tasks, on_result, func) -> None:
-    """Run the tasks one after another in this process (``workers = 0``, for debugging)."""
+    """Run the tasks one after another in this process (``workers = 0``, for debugging).
+
+    A point interrupted by Ctrl-C or SIGTERM (:func:`~knotmm.sweep.point.run_point` returns
+    it ``pending``, its run recorded ``interrupted``) stops the sweep, as with workers.
+    """
     for task in tasks:
-        on_result(func(task))
+        result = func(task)
+        on_result(result)
+        if result.get("status") == "pending":
+            raise KeyboardInterrupt
 
 
 def run_sweep(
@@ -154,7 +176,8 @@ def run_sweep(
     Raises
     ------
     RunDirectoryError
-        If the sweep directory holds files but no knotmm sweep (nothing is written then).
+        If the sweep directory holds files but no knotmm sweep, or another live sweep owns it
+        (the message names its process id); nothing is written then.
     ConfigError
         Bad ``workers``; Dask missing or the scheduler unreachable.
     KeyboardInterrupt
@@ -169,29 +192,74 @@ def run_sweep(
     directory = sweep.directory.resolve()
     if directory.exists() and not directory.is_dir():
         raise RunDirectoryError(f"sweep directory {str(directory)!r} is a file; choose another")
-    if (
-        directory.exists()
-        and any(directory.iterdir())
-        and not (directory / SWEEP_FILE).exists()
-        and not (directory / SUMMARY_FILE).exists()
-    ):
-        raise RunDirectoryError(
-            f"sweep directory {str(directory)!r} is not empty and holds no knotmm sweep; "
-            f"choose another output.directory (or --out)"
-        )
     client, owned = None, False
     if scheduler is not None:
         client, owned = dask_client(scheduler)  # fail before writing anything
     try:
-        return _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wall0)
+        existed = directory.exists()
+        lock = _own(directory)  # before looking inside: a sweep may be creating it now
+        try:
+            if _foreign(directory):
+                raise RunDirectoryError(
+                    f"sweep directory {str(directory)!r} is not empty and holds no knotmm "
+                    f"sweep; choose another output.directory (or --out)"
+                )
+            return _run_sweep(sweep, directory, workers, client, progress, reanalyze, func,
+                              wall0)
+        finally:
+            lock.release()
+            if not existed:  # refused or failed before writing: leave no empty directory
+                with contextlib.suppress(OSError):
+                    directory.rmdir()
     finally:
         if owned:
             client.close()
 
 
+def _write_summary(path: Path, columns, rows) -> None:
+    """Rewrite summary.csv atomically; a failure is a :class:`WriteFault` (exit code 3)."""
+    try:
+        write_text_atomic(path, summary_text(columns, rows))
+    except OSError as exc:
+        raise WriteFault(
+            f"{describe_os_error(path, exc)}; the points' run directories are kept: run the "
+            "sweep again to finish it"
+        ) from None
+
+
+def _own(directory: Path) -> RunLock:
+    """Take the sweep directory's lock; refuse in one line naming a live owner's pid."""
+    try:
+        return RunLock(directory, "sweep")
+    except RunDirectoryError:
+        owner = lock_owner(directory)
+        if owner is None:  # it has just ended: its message stands
+            raise
+        who = f"process {owner}" if owner else "another process"
+        raise RunDirectoryError(
+            f"sweep refused: sweep directory {str(directory)!r} is in use by {who} (another "
+            f"knotmm sweep holds its lock {LOCK_FILE}); wait for it to end or stop it first"
+        ) from None
+
+
+def _foreign(directory: Path) -> bool:
+    """Whether ``directory`` holds files but no knotmm sweep.
+
+    The lock and the temporary files of knotmm's atomic writes (``.sweep.toml.*.tmp``, left
+    by a sweep killed while writing) do not count.
+    """
+    if (directory / SWEEP_FILE).exists() or (directory / SUMMARY_FILE).exists():
+        return False
+    ours = (f".{SWEEP_FILE}.", f".{SUMMARY_FILE}.")
+    return any(
+        p.name != LOCK_FILE and not (p.name.startswith(ours) and p.name.endswith(".tmp"))
+        for p in directory.iterdir()
+    )
+
+
 def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wall0):
-    directory.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(directory / SWEEP_FILE, sweep.to_toml())
+    with writing(directory / SWEEP_FILE):  # nothing run yet: one line, exit code 2
+        write_text_atomic(directory / SWEEP_FILE, sweep.to_toml())
     analysis_kwargs = {
         "t_from": sweep.options.t_from,
         "t_to": sweep.options.t_to,
@@ -227,7 +295,8 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
         rows.append(row)
     by_name = {r["point"]: r for r in rows}
     summary_path = directory / SUMMARY_FILE
-    write_text_atomic(summary_path, summary_text(sweep.columns, rows))
+    with writing(summary_path):
+        write_text_atomic(summary_path, summary_text(sweep.columns, rows))
 
     bar = None
     if progress is None:
@@ -255,12 +324,13 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
             log.info("point %s: %s: %s", result["name"], result["status"], result["error"])
         else:
             log.info("point %s finished", result["name"])
-        write_text_atomic(summary_path, summary_text(sweep.columns, rows))
+        _write_summary(summary_path, sweep.columns, rows)
         if bar is not None:
             bar.update(1)
             if n_failed:
                 bar.set_postfix(failed=n_failed)
 
+    stopped = None
     try:
         if not tasks:
             pass
@@ -271,10 +341,19 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
         else:
             n = workers if workers is not None else default_workers(sweep.base["run.threads"])
             run_local(tasks, n, on_result, func)
+    except BaseException as exc:
+        stopped = exc
+        raise
     finally:
         if bar is not None:
             bar.close()
-        write_text_atomic(summary_path, summary_text(sweep.columns, rows))
+        try:
+            _write_summary(summary_path, sweep.columns, rows)
+        except WriteFault as exc:
+            if stopped is None:
+                raise
+            if not isinstance(stopped, WriteFault):  # the first failure is the one reported
+                log.warning("%s", exc)
 
     plots = []
     try:

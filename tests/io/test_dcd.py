@@ -69,3 +69,47 @@ def test_a_damaged_header_is_one_clear_error(tmp_path, keep):
     path.write_bytes(path.read_bytes()[:keep])
     with pytest.raises(TrajectoryFileError, match="not a DCD|cut inside its DCD header"):
         dcd_layout(path)
+
+
+# -- issue 23, item 3: paths with spaces and non-ASCII characters ------------------------------
+#: A folder name with spaces, accented letters and a symbol outside Latin-1, and one holding
+#: a byte that is not UTF-8 (Python sees it as a lone surrogate, ``os.fsencode`` restores it).
+ODD_NAMES = ["dir with spaces/ünïcødé ☃ run", "bytes \udcff not utf-8"]
+
+
+@pytest.mark.parametrize("name", ODD_NAMES)
+def test_read_and_write_dcd_in_a_unicode_path(tmp_path, name):
+    from knotmm.io.dcd import write_dcd
+
+    folder = tmp_path / name
+    folder.mkdir(parents=True)
+    positions = np.arange(4 * 5 * 3, dtype=np.float64).reshape(4, 5, 3) / 7.0
+    write_dcd(folder / "trajectory.dcd", positions)  # mdtraj: UnicodeEncodeError before
+    xyz, notes = read_dcd(folder / "trajectory.dcd")
+    assert notes == []
+    np.testing.assert_allclose(xyz, positions * 10.0, rtol=1e-6)
+    assert sorted(p.name for p in folder.iterdir()) == ["trajectory.dcd"]  # no temporary left
+
+
+@pytest.mark.parametrize("name", ODD_NAMES)
+def test_a_start_frame_is_read_from_a_dcd_in_a_unicode_path(tmp_path, name):
+    from knotmm.io.pdb import write_pdb
+    from knotmm.io.structure import read_structure
+
+    folder = tmp_path / name
+    folder.mkdir(parents=True)
+    positions = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0, 6, 12)]) * 2
+    write_pdb(folder / "topology.pdb", positions)
+    _write(tmp_path / "ascii.dcd", 3, 12)  # mdtraj writes an ASCII name; then moved
+    (tmp_path / "ascii.dcd").rename(folder / "trajectory.dcd")
+    structure = read_structure(folder / "trajectory.dcd", frame=-1)
+    assert structure.positions.shape == (12, 3)
+
+
+def test_a_damaged_dcd_in_a_unicode_path_names_the_path_as_text(tmp_path):
+    folder = tmp_path / "ünïcødé ☃"
+    folder.mkdir()
+    (folder / "trajectory.dcd").write_bytes(b"not a dcd at all")
+    with pytest.raises(TrajectoryFileError) as info:
+        read_dcd(folder / "trajectory.dcd")
+    assert "b'" not in str(info.value) and "☃" in str(info.value)
