@@ -1,6 +1,7 @@
 #include "knotmm/RPYIntegrator.h"
 #include "knotmm/RPYKernels.h"
 #include "knotmm/RPYMethods.h"
+#include "knotmm/RPYStepFault.h"
 
 #include "openmm/Context.h"
 #include "openmm/OpenMMException.h"
@@ -11,23 +12,16 @@
 #include <istream>
 #include <limits>
 #include <ostream>
-#include <sstream>
 
 using namespace OpenMM;
 using namespace KnotMM;
 
 namespace {
 
-std::string fmt(double x) {
-    std::ostringstream s;
-    s.precision(6);
-    s << x;
-    return s.str();
-}
 
 void requirePositive(double value, const char* name, const char* hint) {
     if (!(value > 0) || !std::isfinite(value))
-        throw OpenMMException(std::string(name) + "=" + fmt(value) + ": must be a finite number > 0" + hint);
+        throw OpenMMException(std::string(name) + "=" + formatNumber(value) + ": must be a finite number > 0" + hint);
 }
 
 // Checkpoint tag of the integrator's own part (changes when the layout changes).
@@ -80,9 +74,9 @@ void RPYIntegrator::setMobility(double mu0) {
 
 void RPYIntegrator::setThermalEnergy(double kT) {
     if (!(kT >= 0) || !std::isfinite(kT))
-        throw OpenMMException("thermalEnergy=" + fmt(kT) + ": must be >= 0 (kT in kJ/mol = F0 d; 0 is deterministic)");
+        throw OpenMMException("thermalEnergy=" + formatNumber(kT) + ": must be >= 0 (kT in kJ/mol = F0 d; 0 is deterministic)");
     if (kT > 0 && !isStochastic())
-        throw OpenMMException("thermalEnergy=" + fmt(kT) + ": method '" + method +
+        throw OpenMMException("thermalEnergy=" + formatNumber(kT) + ": method '" + method +
                               "' is deterministic; use one of " + stochasticNames() + " for kT > 0");
     thermalEnergy = kT;
 }
@@ -182,12 +176,12 @@ void RPYIntegrator::stepTo(double time) {
     checkInitialized();
     const double now = context->getTime();
     if (!std::isfinite(time))
-        throw OpenMMException("stepTo: time=" + fmt(time) + " is not a finite number of ps");
+        throw OpenMMException("stepTo: time=" + formatNumber(time) + " is not a finite number of ps");
     // the landing rule (RPYMethods.h): a time within the slack counts as reached
     const double slack = landingSlack(time);
     if (time < now - slack)
-        throw OpenMMException("stepTo: time=" + fmt(time) + " ps is earlier than the Context's time " +
-                              fmt(now) + " ps; overdamped steps only go forward");
+        throw OpenMMException("stepTo: time=" + formatNumber(time) + " ps is earlier than the Context's time " +
+                              formatNumber(now) + " ps; overdamped steps only go forward");
     while (context->getTime() < time - slack)
         takeStep(time);
 }

@@ -6,19 +6,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 
 using namespace KnotMM;
 
 namespace {
 const double ERROR_ORDER = 1.5;  // the error estimate's order in h (noise dominated)
 
-std::string fmt(double x) {
-    std::ostringstream s;
-    s.precision(6);
-    s << x;
-    return s.str();
-}
 } // namespace
 
 WienerQueue::WienerQueue(RPYBackend& backend)
@@ -101,16 +94,9 @@ double AdaptiveBrownian::step(StepWork& work, double maxDt) {
             errOld = std::max(e, 1e-4);
             return h;
         }
-        work.counts.rejected++;
         if (noisy)
             queue.giveBack(h, *dw);
         const double fac = std::isfinite(e) ? std::max(0.1, 0.9 * std::pow(e, -1.0 / ERROR_ORDER)) : 0.1;
-        integrator.setStepSize(h * fac);
-        if (h * fac < integrator.getMinimumStepSize())
-            throw RPYStepFault(RPYStepFault::StepUnderflow,
-                               "RPYIntegrator (ito_heun_adaptive): the step fell to " + fmt(h * fac) +
-                                   " ps, below minimumStepSize, at t = " + fmt(work.context->getTime()) +
-                                   " ps (error estimate " + fmt(e) + " x tolerance). The last good state is kept",
-                               "ito_heun_adaptive", work.context->getTime(), -1, e);
+        work.reject(h * fac, e, ". The last good state is kept");
     }
 }

@@ -6,18 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 
 using namespace KnotMM;
-
-namespace {
-std::string fmt(double x) {
-    std::ostringstream s;
-    s.precision(6);
-    s << x;
-    return s.str();
-}
-} // namespace
 
 RK23Control::RK23Control(RPYBackend& backend)
     : k2(backend.createVector()), k3(backend.createVector()), k4(backend.createVector()),
@@ -62,15 +52,7 @@ double RK23Control::step(StepWork& work, double maxDt) {
             work.keepVelocity(y1);
             return h;
         }
-        work.counts.rejected++;
         const double fac = std::isfinite(e) ? std::max(0.2, 0.9 * std::pow(e, -1.0 / 3.0)) : 0.2;
-        integrator.setStepSize(h * fac);
-        if (h * fac < integrator.getMinimumStepSize())
-            throw RPYStepFault(RPYStepFault::StepUnderflow,
-                               "RPYIntegrator (rk23): the step fell to " + fmt(h * fac) +
-                                   " ps, below minimumStepSize, at t = " + fmt(work.context->getTime()) +
-                                   " ps (error estimate " + fmt(e) + " x tolerance); the forces are too "
-                                   "stiff here. The last good state is kept",
-                               "rk23", work.context->getTime(), -1, e);
+        work.reject(h * fac, e, "; the forces are too stiff here. The last good state is kept");
     }
 }

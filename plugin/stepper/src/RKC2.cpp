@@ -6,17 +6,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 
 using namespace KnotMM;
 
 namespace {
-std::string fmt(double x) {
-    std::ostringstream s;
-    s.precision(6);
-    s << x;
-    return s.str();
-}
 const int MAX_STAGES = 200;
 const int RHO_INTERVAL = 25;  // steps between spectral-radius estimates
 } // namespace
@@ -179,15 +172,8 @@ double RKC2Control::step(StepWork& work, double maxDt) {
             stepsSinceRho++;
             return h;
         }
-        work.counts.rejected++;
         const double fac = std::isfinite(e) ? std::max(0.1, 0.8 * std::pow(e, -1.0 / 3.0)) : 0.1;
-        integrator.setStepSize(h * fac);
-        if (h * fac < integrator.getMinimumStepSize())
-            throw RPYStepFault(RPYStepFault::StepUnderflow,
-                               "RPYIntegrator (rkc2): the step fell to " + fmt(h * fac) +
-                                   " ps, below minimumStepSize, at t = " + fmt(work.context->getTime()) +
-                                   " ps (error estimate " + fmt(e) + " x tolerance); the last good state is kept",
-                               "rkc2", work.context->getTime(), -1, e);
+        work.reject(h * fac, e, "; the last good state is kept");
         rho = spectralRadius(work, f0);
         haveRho = true;
         stepsSinceRho = 0;

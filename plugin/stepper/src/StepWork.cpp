@@ -1,5 +1,7 @@
 #include "knotmm/stepper/StepWork.h"
 
+#include "knotmm/RPYIntegrator.h"
+#include "knotmm/RPYStepFault.h"
 #include "openmm/internal/ContextImpl.h"
 
 #include <cmath>
@@ -33,6 +35,17 @@ void StepWork::noiseSample(const StateVector& at, double scale, StateVector& out
     backend.factorNoise(at);
     backend.normals(noise, *xi);
     backend.applyNoise(scale, *xi, out);
+}
+
+void StepWork::reject(double next, double error, const char* tail) {
+    counts.rejected++;
+    integrator->setStepSize(next);
+    if (next < integrator->getMinimumStepSize())
+        throw RPYStepFault(RPYStepFault::StepUnderflow,
+                           std::string("RPYIntegrator (") + name() + "): the step fell to " + formatNumber(next) +
+                               " ps, below minimumStepSize, at t = " + formatNumber(context->getTime()) +
+                               " ps (error estimate " + formatNumber(error) + " x tolerance)" + tail,
+                           name(), context->getTime(), -1, error);
 }
 
 double StepWork::errorRatio(const StateVector& err, double tolerance) {

@@ -7,19 +7,9 @@
 #include <cmath>
 #include <limits>
 #include <random>
-#include <sstream>
 
 using namespace OpenMM;
 using namespace KnotMM;
-
-namespace {
-std::string fmt(double x) {
-    std::ostringstream s;
-    s.precision(6);
-    s << x;
-    return s.str();
-}
-} // namespace
 
 Stepper::Stepper(RPYBackend& backend, const RPYIntegrator& integrator)
     : work(backend, rpyMethodInfo(integrator.getMethod()).id), fixed(backend), rk23(backend),
@@ -67,7 +57,7 @@ double Stepper::step(ContextImpl& context, RPYIntegrator& integrator, double tar
         if (bad >= 0)
             throw RPYStepFault(RPYStepFault::NonFinite,
                                std::string("RPYIntegrator (") + work.name() +
-                                   "): positions became non-finite at t = " + fmt(t0 + h) + " ps (bead " +
+                                   "): positions became non-finite at t = " + formatNumber(t0 + h) + " ps (bead " +
                                    std::to_string(bad / 3) +
                                    "); the last good state is kept. Lower the step size or the error tolerance",
                                work.name(), t0, bad / 3);

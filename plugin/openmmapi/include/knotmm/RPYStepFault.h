@@ -8,9 +8,18 @@
 #include "openmm/OpenMMException.h"
 
 #include <limits>
+#include <sstream>
 #include <string>
 
 namespace KnotMM {
+
+/** A number in the plugin's messages: six significant digits. */
+inline std::string formatNumber(double x) {
+    std::ostringstream s;
+    s.precision(6);
+    s << x;
+    return s.str();
+}
 
 class RPYStepFault : public OpenMM::OpenMMException {
 public:

@@ -46,6 +46,12 @@ public:
     void noiseSample(const StateVector& at, double scale, StateVector& out);
     /** Largest per-bead norm of `err` over `tolerance`; +infinity if anything is not finite. */
     double errorRatio(const StateVector& err, double tolerance);
+    /**
+     * An adaptive method's rejected try: count it and set the next step to `next` (ps); below
+     * the integrator's minimum step, throw RPYStepFault (StepUnderflow) with the error ratio
+     * `error` and the message ending in `tail`.
+     */
+    void reject(double next, double error, const char* tail);
     /** The method's name (messages). */
     const char* name() const { return rpyMethodInfo(method).name; }
 };
