@@ -23,7 +23,7 @@ import functools
 
 import numpy as np
 
-__all__ = ["as_chain", "writhe"]
+__all__ = ["as_chain", "segment_pair_gauss", "writhe"]
 
 # Pairs of segments evaluated at once per chunk in writhe(); bounds the temporary memory
 # (about 40 float64 arrays of this length).
@@ -59,7 +59,7 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return np.where(norm > 0.0, u, 0.0)
 
 
-def _pair_solid_angles(p1, p2, p3, p4) -> np.ndarray:
+def segment_pair_gauss(p1, p2, p3, p4) -> np.ndarray:
     """Signed solid angle (times 1/(4 pi): the Gauss-integral contribution) of segment pairs.
 
     Parameters
@@ -103,7 +103,7 @@ def _writhe_numpy(frames: np.ndarray) -> np.ndarray:
     for start in range(0, frames.shape[0], per_chunk):
         f = frames[start : start + per_chunk]
         a, b = f, f[:, nxt]
-        contrib = _pair_solid_angles(a[:, i], b[:, i], a[:, j], b[:, j])
+        contrib = segment_pair_gauss(a[:, i], b[:, i], a[:, j], b[:, j])
         out[start : start + per_chunk] = 2.0 * contrib.sum(axis=1)
     return out
 
