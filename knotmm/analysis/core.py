@@ -1,5 +1,12 @@
 """The analysis pipeline: window -> regime -> observables -> spectra -> fit -> topology -> files.
 
+Every run gets the knot type it recorded, the sedimentation speed and the shape measures of
+:mod:`knotmm.analysis.shape` (Rg, its part perpendicular to gravity, asphericity, ACN,
+writhe: window means with block-bootstrap errors, series in ``analysis_shape.csv``). The
+torus formulas (p, q, ``N l0 / (2 pi p)``) and the vortex-knot fit are made only for a torus
+knot (:func:`knotmm.analysis.topology.run_knot`) in a flat-torus window, with a note
+otherwise.
+
 The regime checks (:mod:`knotmm.analysis.regimes`) sit between the steady window and the
 measurements: is there a swirl at all, is the window a flat torus, is it tilted, has the
 swirl amplitude relaxed. The vortex-knot fit is made in the body frame
@@ -26,13 +33,15 @@ from knotmm.analysis.regime_report import (
 )
 from knotmm.analysis.regimes import assess
 from knotmm.analysis.result import AnalysisResult
+from knotmm.analysis.shape import SHAPE_FILE, chains_of, shape_series
 from knotmm.analysis.spectra import rotation_spectrum, swirl_spectrum
 from knotmm.analysis.topology import (
     KnotTypes,
+    describe_changes,
     handedness,
     knot_types,
-    mean_writhe,
     rotation_sense,
+    run_knot,
 )
 from knotmm.analysis.window import MIN_FRAMES, steady_window
 from knotmm.errors import ConfigError
@@ -92,9 +101,12 @@ def analyze(
         Window start / end in tau_d, replacing the detected ones (see
         :func:`knotmm.analysis.window.steady_window`).
     p, q : int, optional
-        The torus knot T(p, q) used in the formulas. Default: ``knot.p``/``knot.q`` of a
-        torus-knot run file; else p is the winding number of the chain about the vertical
-        axis and q is reported as None (the fit then uses the detected core winding).
+        The torus knot T(p, q) used in the formulas (giving p makes the run a torus knot).
+        Default: ``knot.p``/``knot.q`` of a torus-knot run file, or the (p, q) of a torus
+        knot's name or type (p the pair's member the chain winds about the vertical axis);
+        with no run file, p is the chain's winding number about the vertical axis and q is
+        None (the fit then uses the detected core winding). Any other knot, a link or an
+        open chain gets no p, q, ``N l0 / (2 pi p)`` or fit (a note says why).
     knot_samples : int
         Frames identified with topoly when looking for a change of knot type (plus a
         bisection); 0 skips knot identification.
@@ -109,6 +121,7 @@ def analyze(
     q = _check_int(q, "--q")
     notes = list(data.notes)
     times, positions = data.times, data.positions
+    chains = chains_of(data)
     # A change of knot type (strands passing through each other) ends any periodic state:
     # unless --to is given, the window is looked for only in the frames before the first
     # change (the same detection, on a shorter trajectory, so a collapse is still found).
@@ -118,22 +131,27 @@ def analyze(
         scan = knot_types(
             times, positions, 0, len(times) - 1, samples=knot_samples, identify=identify
         )
-        if scan.changed_frame is not None and scan.changed_frame >= MIN_FRAMES:
-            n_usable = int(scan.changed_frame)
+        first = scan.changes[0] if scan.changes else None
+        later = describe_changes(scan.changes[1:])
+        later = f"; later {later}" if later else ""
+        if first is not None and first["frame"] >= MIN_FRAMES:
+            n_usable = int(first["frame"])
             notes.append(
-                f"the knot type changed at t = {scan.changed_at:g} tau_d "
-                f"({scan.initial} -> {scan.end}): the window ends before it"
+                f"the knot type changed at t = {first['time']:g} tau_d "
+                f"({first['from']} -> {first['to']}): the window ends before it{later}"
             )
-        elif scan.changed_frame is not None:
+        elif first is not None:
             # too early for a window before it: the whole-run measures still stand
             notes.append(
-                f"the knot type changed at t = {scan.changed_at:g} tau_d "
-                f"({scan.initial} -> {scan.end}), before the {MIN_FRAMES} frames a window "
-                f"needs: the window is looked for in the whole run and may include the change"
+                f"the knot type changed at t = {first['time']:g} tau_d "
+                f"({first['from']} -> {first['to']}), before the {MIN_FRAMES} frames a window "
+                f"needs: the window is looked for in the whole run and may include the "
+                f"change{later}"
             )
     window = steady_window(times[:n_usable], positions[:n_usable], t_from=t_from, t_to=t_to)
     # body frame: swirl detection, relaxation, torus shape and tilt (knotmm.analysis.regimes)
-    regime = assess(times, positions, window, n_usable)
+    driven = data.get("model.gravity") is None or float(data.get("model.gravity")) != 0.0
+    regime = assess(times, positions, window, n_usable, driven=driven)
     window = regime.window
     detected = regime.detection.detected
     notes += window.notes + regime.notes
@@ -142,31 +160,30 @@ def analyze(
     coords = cylindrical(positions)
     rho, alpha, z_rel = coords.rho[sel], coords.alpha[sel], coords.z[sel]
 
-    # p and q
+    # the knot, and p and q of a torus knot
+    if knot_samples > 0:
+        kt = knot_types(
+            times, positions, window.start, window.stop, samples=knot_samples, identify=identify
+        )
+    else:
+        kt = KnotTypes(None, None, None, notes=["knot identification skipped"])
+    knot = run_knot(data, chains, kt.initial)
     axis_w, core_w = winding_numbers(x_w[:: max(1, len(x_w) // 50)])
     p_det, q_det = _detected(axis_w), _detected(core_w)
-    is_torus = data.get("knot.kind", "torus") == "torus"
-    p_cfg = data.get("knot.p") if is_torus else None
-    q_cfg = data.get("knot.q") if is_torus else None
-    if p is not None:
-        p_src = "argument"
-    elif p_cfg is not None:
-        p, p_src = int(p_cfg), "run file"
-    elif p_det is not None:
-        p, p_src = p_det, "data"
+    torus = knot.torus if p is None else (p, q)
+    p, q, p_src, q_src = _torus_pq(torus, knot.torus_source, p, q, p_det, notes)
+    if torus is None:
+        named = f"{knot.description}" + (
+            f", {knot.knot_type} from {knot.source}" if knot.knot_type else "")
+        notes.append(
+            f"not a torus knot ({named}): p, q, N l0/(2 pi p) and the vortex-knot fit are "
+            "not reported (give --p and --q to apply the torus formulas anyway)"
+        )
     else:
-        p, p_src = 1, "default"
-        notes.append("the chain does not wind around the vertical axis: p = 1 assumed")
-    if p_det is not None and p_det != p:
-        notes.append(f"p = {p} ({p_src}) but the chain winds {p_det} times around the axis")
-    if q is not None:
-        q_src = "argument"
-    elif q_cfg is not None:
-        q, q_src = int(q_cfg), "run file"
-    else:
-        q_src = "unknown"
-    if q is not None and q_det is not None and q_det != q:
-        notes.append(f"q = {q} ({q_src}) but the chain winds {q_det} times around its core")
+        if p_det is not None and p_det != p:
+            notes.append(f"p = {p} ({p_src}) but the chain winds {p_det} times around the axis")
+        if q is not None and q_det is not None and q_det != q:
+            notes.append(f"q = {q} ({q_src}) but the chain winds {q_det} times around its core")
 
     # V, rho0, geometric estimate
     velocity, velocity_err = _velocity(t_w, coords.com[sel, 2])
@@ -178,7 +195,12 @@ def analyze(
         bond = float(np.median(np.linalg.norm(np.roll(x0, -1, axis=0) - x0, axis=1)))
         notes.append(f"no model.bond_length in a run file: l0 = {bond:.4g} d measured at t = 0")
     bond = float(bond)
-    rho_geo = data.n_beads * bond / (2.0 * math.pi * p)
+    rho_geo = float("nan")
+    if torus is not None and regime.toroidal:
+        rho_geo = data.n_beads * bond / (2.0 * math.pi * p)
+    elif torus is not None:
+        notes.append("the window is not a flat torus: N l0/(2 pi p) is not compared with rho0")
+    shape = shape_series(times, positions, chains, window.frames)
 
     # spectra
     swirl = swirl_spectrum(t_w, rho, z_rel)
@@ -206,6 +228,8 @@ def analyze(
     vfit = None
     q_fit = q if q is not None else q_det
     amplitude = float(np.sqrt(2.0 * np.mean((rho - rho.mean(axis=0)) ** 2)))
+    if fit and torus is None:
+        fit = False
     if fit and not (detected and regime.toroidal):
         fit = False
         notes.append("no swirl or no flat torus in the window: vortex-knot fit skipped")
@@ -245,20 +269,18 @@ def analyze(
                 )
 
     # topology
-    wr, wr_std = mean_writhe(x_w)
-    if knot_samples > 0:
-        kt = knot_types(
-            times, positions, window.start, window.stop, samples=knot_samples, identify=identify
-        )
-    else:
-        kt = KnotTypes(None, None, None, notes=["knot identification skipped"])
-    notes += kt.notes
+    wr, wr_std = shape.value("writhe"), shape.stats["writhe"]["std"]
+    notes += kt.notes + _recorded_changes_note(data, kt)
 
     # tilt of the torus axis against gravity and flips, over the whole trajectory
     from knotmm.analysis.tilt import tilt_analysis
 
     tilt = tilt_analysis(positions, times).to_dict() if len(times) >= 2 else None
     extra = regime_keys(regime, vfit, p, q_fit, notes, body_swirl, body_rot)
+    extra["uncertainties"].update({
+        name: {k: v for k, v in stats.items() if k != "std"}
+        for name, stats in shape.stats.items()
+    })
     if not (detected and regime.toroidal):
         amplitude = float("nan")
 
@@ -298,7 +320,57 @@ def analyze(
         extra=extra,
         data=data,
         coords=coords,
+        knot=knot,
+        shape=shape,
     )
+
+
+def _torus_pq(torus, source, p, q, p_det, notes):
+    """p, q and where each comes from, for a torus knot ``torus`` = (p, q) or None."""
+    if torus is None:
+        return None, None, "not a torus knot", "not a torus knot"
+    p_cfg, q_cfg = torus
+    if p is None and source == "knot type" and p_det in torus and p_cfg != q_cfg:
+        # T(p, q) = T(q, p): the pair's member the chain winds about the vertical axis is p
+        p_cfg, q_cfg = p_det, (q_cfg if p_det == p_cfg else p_cfg)
+    label = source or "run file"
+    if p is not None:
+        p_src = "argument"
+    elif p_cfg is not None:
+        p, p_src = int(p_cfg), label
+    elif p_det is not None:
+        p, p_src = p_det, "data"
+    else:
+        p, p_src = 1, "default"
+        notes.append("the chain does not wind around the vertical axis: p = 1 assumed")
+    if q is not None:
+        q_src = "argument"
+    elif q_cfg is not None:
+        q, q_src = int(q_cfg), label
+    else:
+        q_src = "unknown"
+    return p, q, p_src, q_src
+
+
+def recorded_changes(data) -> list[dict]:
+    """The knot-type changes run.toml records (``[knotmm] knot_type_changes``), in order."""
+    facts = data.get("knotmm", {}) or {}
+    return [dict(c) for c in facts.get("knot_type_changes", []) or []]
+
+
+def _recorded_changes_note(data, kt: KnotTypes) -> list[str]:
+    """A note when run.toml's changes and the analysis's differ (types, in order)."""
+    run = recorded_changes(data)
+    if kt.initial is None:
+        return [f"run.toml records knot-type changes: {describe_changes(run)}"] if run else []
+    steps = [(c["from"], c["to"]) for c in kt.changes]
+    if not run or [(c["from"], c["to"]) for c in run] == steps:
+        return []
+    return [
+        f"run.toml records {describe_changes(run)} (checked every "
+        f"{data.get('run.topology_check_interval', '?')} tau_d); the frames show "
+        f"{kt.describe_changes() or 'no change'}"
+    ]
 
 
 def analyze_run(
@@ -362,6 +434,8 @@ def analyze_run(
                 from knotmm.analysis.plots import save_plots
 
                 result.plots = [f.name for f in save_plots(result, out)]
+            if result.shape is not None:
+                write_text_atomic(out / SHAPE_FILE, result.shape.to_csv())
             text = json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n"
             write_text_atomic(path, text)  # never a half-written analysis.json
         logger.info("wrote %s", path)

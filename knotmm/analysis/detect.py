@@ -19,7 +19,11 @@ a rigid motion of any kind leaves it at zero):
    ``Pr(max > r S) <= K exp(-r)``. The line is significant if ``K exp(-r) <``
    :data:`FALSE_ALARM` (0.01): the stated false-alarm probability. ``p_value`` is
    ``min(1, K exp(-r))``.
-2. Amplitude above the file's precision. A DCD stores Angstrom in float32: a coordinate of
+2. A line, not the foot of a red spectrum. A chain drifting or relaxing towards a steady
+   shape has a spectrum that falls from zero frequency: its highest point in the band is the
+   band's lowest bin, however significant against the noise further out. The line must be a
+   local maximum: above the bin next to it towards zero frequency (and the one beyond it).
+3. Amplitude above the file's precision. A DCD stores Angstrom in float32: a coordinate of
    magnitude X (in d) is rounded to within half a float32 spacing, ``ulp(10 X) / 10`` d.
    The line's amplitude (the larger of its rms per-bead half-amplitudes in rho and z) must
    exceed :data:`PRECISION_FACTOR` (10) times the spacing at the largest coordinate of the
@@ -210,11 +214,24 @@ def detect_swirl(times, rho, z, max_coordinate: float | None = None) -> SwirlDet
     a_rho = float(np.sqrt(np.mean(line_amplitudes(t, rho, freq) ** 2)))
     a_z = float(np.sqrt(np.mean(line_amplitudes(t, z, freq) ** 2)))
     amplitude = max(a_rho, a_z)
+    bins = np.rint(k_all).astype(int)
+    step = int(np.sign(kk))
+    toward = int(np.flatnonzero(bins == int(round(kk)) - step)[0])
+    beyond = np.flatnonzero(bins == int(round(kk)) + step)
+    peak = power[k] > power[toward] and (not beyond.size or power[k] > power[beyond[0]])
     if ratio <= threshold:
         reason = (
             f"no swirl detected: the strongest line of the swirl band (period "
             f"{1 / abs(freq):.4g} tau_d) is {ratio:.3g} times the local noise floor, below "
             f"the {threshold:.3g} needed for a false-alarm probability of {FALSE_ALARM:g}"
+        )
+        detected = False
+    elif not peak:
+        reason = (
+            f"no swirl detected: the swirl band's strongest bin (period "
+            f"{m * dt / abs(kk):.4g} tau_d) is no spectral line: the power rises towards "
+            "zero frequency (a drift or a relaxation towards a steady shape, not an "
+            "oscillation)"
         )
         detected = False
     elif amplitude <= floor:

@@ -3,7 +3,11 @@
 :func:`assess` is called by :func:`knotmm.analysis.core.analyze` between finding the steady
 window and measuring on it. On the body frame (:mod:`knotmm.analysis.body`) it
 
-1. tests the window for a swirl (:func:`knotmm.analysis.detect.detect_swirl`). When the
+1. tests the window for a swirl (:func:`knotmm.analysis.detect.detect_swirl`). A run with no
+   external force (``model.gravity = 0``) has none by construction: the overdamped
+   dynamics ``dx/dt = M(x) F(x)`` with ``F = -grad U`` and a positive mobility ``M`` lowers
+   ``U`` at every instant (``dU/dt = -F.MF <= 0``), so the chain converges to a steady
+   shape and has no periodic orbit; what the detector sees there is that relaxation. When the
    window holds none, the rest of the usable trajectory is tested too; with no swirl anywhere
    there is no periodic state to find, so an automatic window becomes the whole usable
    trajectory (a rigid ring sinking and turning is steady throughout);
@@ -32,7 +36,7 @@ from knotmm.analysis.body import TILTED_DEG, BodyFrame, body_frame, inclination_
 from knotmm.analysis.detect import SwirlDetection, detect_swirl
 from knotmm.analysis.window import MIN_FRAMES, Window, longest_run
 
-__all__ = ["Regime", "assess", "RELAXATION_TOL", "TOROIDAL_WINDOW"]
+__all__ = ["Regime", "assess", "RELAXATION_TOL", "TOROIDAL_WINDOW", "UNDRIVEN"]
 
 #: Fraction of toroidal frames that makes a window toroidal.
 TOROIDAL_WINDOW = 0.8
@@ -70,9 +74,21 @@ class Regime:
     notes: list = field(default_factory=list)
 
 
-def _detect(body: BodyFrame, positions: np.ndarray, sel: slice) -> SwirlDetection:
+#: Why an undriven run has no swirl (module docstring, item 1).
+UNDRIVEN = (
+    "no swirl: model.gravity = 0, and with no external force the overdamped chain only "
+    "lowers its energy (dU/dt = -F.M F <= 0): it converges to a steady shape and has no "
+    "periodic orbit"
+)
+
+
+def _detect(body: BodyFrame, positions: np.ndarray, sel: slice,
+            driven: bool = True) -> SwirlDetection:
     top = float(np.abs(positions[sel]).max())
-    return detect_swirl(body.times[sel], body.rho[sel], body.z[sel], max_coordinate=top)
+    found = detect_swirl(body.times[sel], body.rho[sel], body.z[sel], max_coordinate=top)
+    if not driven:
+        return replace(found, detected=False, reason=UNDRIVEN)
+    return found
 
 
 def _whole(window: Window, times: np.ndarray, n_usable: int, why: str) -> Window:
@@ -140,7 +156,7 @@ def relaxation_end(body: BodyFrame, window: Window, frequency: float) -> int:
     return window.start + min(int(bad[-1]) + 1 + size // 2, window.n_frames - MIN_FRAMES)
 
 
-def assess(times, positions, window: Window, n_usable: int) -> Regime:
+def assess(times, positions, window: Window, n_usable: int, driven: bool = True) -> Regime:
     """Detect the swirl, fix the window's start, classify its shape (module docstring).
 
     Parameters
@@ -153,6 +169,9 @@ def assess(times, positions, window: Window, n_usable: int) -> Regime:
         From :func:`knotmm.analysis.window.steady_window`.
     n_usable : int
         Frames before a change of knot type (the automatic window stays inside them).
+    driven : bool
+        False for a run with no external force (``model.gravity = 0``): no swirl (module
+        docstring).
 
     Returns
     -------
@@ -161,7 +180,7 @@ def assess(times, positions, window: Window, n_usable: int) -> Regime:
     x = np.asarray(positions, dtype=np.float64)
     body = body_frame(x, times)
     notes: list[str] = []
-    detection = _detect(body, x, window.frames)
+    detection = _detect(body, x, window.frames, driven)
     automatic = window.automatic_start or window.automatic_stop
     if not detection.detected and automatic:
         wide = _whole(
@@ -172,7 +191,7 @@ def assess(times, positions, window: Window, n_usable: int) -> Regime:
             "window is the whole usable trajectory",
         )
         if (wide.start, wide.stop) != (window.start, window.stop):
-            wide_detection = _detect(body, x, wide.frames)
+            wide_detection = _detect(body, x, wide.frames, driven)
             if not wide_detection.detected:
                 notes.append(
                     f"no swirl anywhere in the run: the window is widened from "
@@ -189,7 +208,7 @@ def assess(times, positions, window: Window, n_usable: int) -> Regime:
             )
             end = "tilt" if level[1] < len(body.times) - 1 else window.end_reason
             window = _moved(window, body.times, *level, end_reason=end)
-            detection = _detect(body, x, window.frames)
+            detection = _detect(body, x, window.frames, driven)
     if detection.detected and window.automatic_start:
         start = relaxation_end(body, window, detection.frequency)
         if start > window.start:
@@ -198,7 +217,7 @@ def assess(times, positions, window: Window, n_usable: int) -> Regime:
                 f"relaxation of the swirl amplitude (was {window.t0:g})"
             )
             window = _moved(window, body.times, start, window.stop, notes=window.notes)
-            detection = _detect(body, x, window.frames)
+            detection = _detect(body, x, window.frames, driven)
     summary = inclination_summary(body, window.frames)
     toroidal = summary["torus_fraction_window"] >= TOROIDAL_WINDOW
     tilted = summary["window_inclination_median_deg"] > TILTED_DEG

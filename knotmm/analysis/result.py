@@ -13,8 +13,9 @@ import numpy as np
 from knotmm.analysis.fit import VortexFit
 from knotmm.analysis.geometry import Cylindrical
 from knotmm.analysis.regime_report import tilt_row
+from knotmm.analysis.shape import SHAPE_FILE, ShapeSeries
 from knotmm.analysis.spectra import Spectrum
-from knotmm.analysis.topology import KnotTypes
+from knotmm.analysis.topology import KnotTypes, RunKnot, describe_changes
 from knotmm.analysis.window import Window
 from knotmm.io.run_data import RunData
 
@@ -46,7 +47,7 @@ def _ratio(num: float, den: float, num_err: float, den_err: float) -> tuple[floa
     return value, abs(value) * rel
 
 
-@dataclass
+@dataclass(repr=False)
 class AnalysisResult:
     """Everything ``knotmm analyze`` measures on one trajectory, in model units.
 
@@ -63,7 +64,16 @@ class AnalysisResult:
         rho0, the mean bead distance from the vertical axis through the centre of mass over
         the window, and the standard deviation of its per-frame value.
     major_radius_geometric : float
-        ``N l0 / (2 pi p)``.
+        ``N l0 / (2 pi p)``; NaN (null) unless a torus knot in a flat-torus window.
+    p, q : int or None
+        The torus knot T(p, q) of the formulas; None for any other knot, a link or an open
+        chain (``p_source`` then says ``"not a torus knot"``).
+    knot : RunKnot or None
+        The run's knot as it recorded it (:func:`knotmm.analysis.topology.run_knot`).
+    shape : ShapeSeries or None
+        Rg, Rg perpendicular to gravity, asphericity, ACN and writhe over the window
+        (:mod:`knotmm.analysis.shape`); their window means are the JSON keys of those names,
+        their block-bootstrap errors entries of ``uncertainties``.
     swirl_amplitude : float
         C, from the vortex-knot fit; NaN (null) without a detected swirl or a flat torus.
     tau_swirl, tau_rot : float
@@ -99,7 +109,7 @@ class AnalysisResult:
     writhe_std: float
     handedness: str | None
     window: Window
-    p: int
+    p: int | None
     q: int | None
     p_detected: int | None
     q_detected: int | None
@@ -117,6 +127,55 @@ class AnalysisResult:
     extra: dict = field(default_factory=dict)
     data: RunData | None = field(default=None, repr=False)
     coords: Cylindrical | None = field(default=None, repr=False)
+    knot: RunKnot | None = None
+    shape: ShapeSeries | None = field(default=None, repr=False)
+
+    # -- display -------------------------------------------------------------------------
+    def summary(self) -> str:
+        """The plain-text table that ``knotmm analyze`` prints (:func:`format_table`).
+
+        One row per reported quantity (window, knot, V, rho0, the shape measures, periods,
+        ratios, senses, writhe, knot type and its changes, fit quality, regime checks), then
+        the notes, one per line.
+        """
+        return format_table(self)
+
+    def __repr__(self) -> str:
+        """One line: what was analysed, its frames and duration, and the key results."""
+        d = self.to_dict()
+        data = self.data
+        what = "in-memory trajectory"
+        if data is not None and data.directory is not None:
+            what = str(Path(data.directory).name or data.directory)
+        frames = data.n_frames if data is not None else "?"
+        span = float(data.times[-1]) if data is not None and len(data.times) else float("nan")
+        knot = d["knot_type"] or d["knot_description"] or "knot ?"
+        parts = [
+            f"{what}: {frames} frames, {span:g} tau_d",
+            f"window {self.window.t0:g}..{self.window.t1:g}",
+            f"{knot}",
+            f"V = {_fmt(d['sedimentation_velocity'], d['sedimentation_velocity_uncertainty'])}",
+            f"Rg = {_fmt(d['radius_of_gyration'])}",
+            f"ACN = {_fmt(d['average_crossing_number'])}",
+            "swirl " + (f"tau = {_fmt(d['tau_swirl'])}" if d["swirl_detected"] else "none"),
+        ]
+        if d["knot_type_changes"]:
+            parts.append(f"{len(d['knot_type_changes'])} knot-type change(s)")
+        return f"<AnalysisResult {'; '.join(parts)}>"
+
+    def _repr_html_(self) -> str:
+        """The :meth:`summary` table as HTML, for Jupyter."""
+        import html
+
+        rows, notes = _rows(self)
+        body = "".join(
+            f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+            f"<td style='text-align:left'>{html.escape(v)}</td></tr>"
+            for k, v in rows
+        )
+        foot = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
+        return (f"<table><caption>{html.escape(repr(self))}</caption>{body}</table>"
+                + (f"<ul>{foot}</ul>" if foot else ""))
 
     # -- derived -------------------------------------------------------------------------
     @property
@@ -158,6 +217,21 @@ class AnalysisResult:
             "tau_rot_over_tau_sed_uncertainty": rot_err,
         }
 
+    def changes(self) -> list[dict]:
+        """Every knot-type change, in order (``time``, ``from``, ``to``): the analysis's own
+        (frames identified with topoly), or run.toml's record when it identified none."""
+        if self.knots.initial is not None:
+            return list(self.knots.changes)
+        facts = (self.data.get("knotmm", {}) if self.data is not None else {}) or {}
+        return [dict(c) for c in facts.get("knot_type_changes", []) or []]
+
+    def _shape_keys(self) -> dict[str, Any]:
+        names = ("average_crossing_number", "radius_of_gyration", "radius_of_gyration_perp",
+                 "asphericity")
+        if self.shape is None:
+            return {name: None for name in names} | {"shape_series": None}
+        return {name: self.shape.value(name) for name in names} | {"shape_series": SHAPE_FILE}
+
     def to_dict(self) -> dict[str, Any]:
         """The JSON content (``analysis.json``): model units, non-finite values as null."""
         fit = self.fit.to_dict() if self.fit is not None else None
@@ -194,6 +268,14 @@ class AnalysisResult:
             "writhe": self.writhe,
             "writhe_std": self.writhe_std,
             "handedness": self.handedness,
+            **self._shape_keys(),
+            "knot_type": self.knot.knot_type if self.knot is not None else self.knots.initial,
+            "knot_type_source": self.knot.source if self.knot is not None else None,
+            "knot_description": self.knot.description if self.knot is not None else None,
+            "torus_knot": self.p is not None,
+            "knot_type_changes": [
+                {"time": c["time"], "from": c["from"], "to": c["to"]} for c in self.changes()
+            ],
             "knot_type_initial": self.knots.initial,
             "knot_type_start": self.knots.start,
             "knot_type_end": self.knots.end,
@@ -266,25 +348,45 @@ def _fmt_signed(value) -> str:
     return f"+{text}" if positive else text
 
 
-def format_table(result: AnalysisResult) -> str:
-    """A short plain-text table of the reported quantities."""
+def _knot_row(d: dict) -> str:
+    named = d["knot_type"] or "type not identified"
+    if d["knot_type_source"]:
+        named += f", from {d['knot_type_source']}"
+    if d["p"] is None:
+        return f"{d['knot_description'] or 'knot'} ({named}): not a torus knot"
+    q = d["q"] if d["q"] is not None else "?"
+    return f"T({d['p']},{q})  p from {d['p_source']}  ({named})"
+
+
+def _with_error(d: dict, name: str) -> str:
+    err = (d.get("uncertainties") or {}).get(name, {}).get("std_error")
+    return _fmt(d.get(name), err)
+
+
+def _rows(result: AnalysisResult) -> tuple[list[tuple[str, str]], list[str]]:
+    """The rows of :func:`format_table` and its notes."""
     d = result.to_dict()
     q = d["fit_quality"] or {}
     knot = d["knot_type_start"]
     if d["knot_type_end"] != d["knot_type_start"]:
         knot = f"{d['knot_type_start']} -> {d['knot_type_end']}"
+    changes = describe_changes(d["knot_type_changes"])
     win = result.window
     end = win.end_reason
     if win.collapse_time is not None:
         end += f"; torus radius collapsed at t = {win.collapse_time:g}"
+    rho0 = _fmt(d["major_radius"])
+    if d["major_radius_geometric"] is not None:
+        rho0 += f"   (N l0/(2 pi p) = {_fmt(d['major_radius_geometric'])})"
     rows = [
         ("window [tau_d]", f"{win.t0:g} .. {win.t1:g}  ({win.n_frames} frames; end: {end})"),
-        ("knot", f"T({d['p']},{d['q'] if d['q'] is not None else '?'})  p from {d['p_source']}"),
+        ("knot", _knot_row(d)),
         ("V [d/tau_d]", _fmt(d["sedimentation_velocity"], d["sedimentation_velocity_uncertainty"])),
-        (
-            "rho0 [d]",
-            _fmt(d["major_radius"]) + f"   (N l0/(2 pi p) = {_fmt(d['major_radius_geometric'])})",
-        ),
+        ("rho0 [d]", rho0),
+        ("Rg [d]", _with_error(d, "radius_of_gyration")),
+        ("Rg perp. to gravity [d]", _with_error(d, "radius_of_gyration_perp")),
+        ("asphericity", _with_error(d, "asphericity")),
+        ("average crossing number", _with_error(d, "average_crossing_number")),
         ("C [d]", _fmt(d["swirl_amplitude"])),
         ("tau_sed [tau_d]", _fmt(d["tau_sed"], d["tau_sed_uncertainty"])),
         ("tau_swirl [tau_d]", _fmt(d["tau_swirl"], d["tau_swirl_uncertainty"])),
@@ -297,15 +399,7 @@ def format_table(result: AnalysisResult) -> str:
         ("rotation (from above)", _fmt(d["rotation_sense"])),
         ("swirl", _fmt(d["swirl_sense"])),
         ("writhe", f"{_fmt_signed(d['writhe'])}  (handedness {_fmt(d['handedness'])})"),
-        (
-            "knot type",
-            _fmt(knot)
-            + (
-                f"  (changed at t = {d['knot_type_changed_at']:g})"
-                if d["knot_type_changed_at"] is not None
-                else ""
-            ),
-        ),
+        ("knot type", _fmt(knot) + (f"  (changes: {changes})" if changes else "")),
         (
             "fit R^2 (rho, alpha, z)",
             ", ".join(_fmt(q.get(k), digits=3) for k in ("r2_rho", "r2_alpha", "r2_z")),
@@ -321,7 +415,13 @@ def format_table(result: AnalysisResult) -> str:
             "swirl half-amplitude rho, z [d]",
             f"{_fmt(d['swirl_amplitude_rho'])}, {_fmt(d['swirl_amplitude_z'])}",
         ))
+    return rows, list(d["notes"])
+
+
+def format_table(result: AnalysisResult) -> str:
+    """A short plain-text table of the reported quantities (:meth:`AnalysisResult.summary`)."""
+    rows, notes = _rows(result)
     width = max(len(k) for k, _ in rows)
     lines = [f"{k:<{width}}  {v}" for k, v in rows]
-    lines += [f"note: {n}" for n in d["notes"]]
+    lines += [f"note: {n}" for n in notes]
     return "\n".join(lines)
