@@ -10,14 +10,17 @@ the orbit state ``x`` (centroid at the origin, the torus axis along ``z``):
   **in-plane** part, the latter into **radial** (along the bead's horizontal radius:
   breathing when uniform) and **tangential** (sliding around the torus);
 
-each as a fraction of ``|v|^2``. The azimuthal wavenumber ``m`` of the largest deformation
-part is the ``m = 0 .. 6`` with the most power in ``sum_i c_i exp(-i m phi_i)``, ``phi_i``
-the bead's azimuth (``m = 0``: the same at every azimuth, ``m = 1``: one wave around).
+each as a fraction of ``|v|^2``. Each part has its own azimuthal wavenumber: the
+``m = 0 .. 6`` with the most power in ``sum_i c_i exp(-i m phi_i)``, ``c_i`` the part's
+component at bead ``i`` (the vertical displacement for the tilt, which is ``m = 1`` for a
+flat torus), ``phi_i`` the bead's azimuth (``m = 0``: the same at every azimuth, ``m = 1``:
+one wave around). The mode's ``m`` is the wavenumber of the part its label names: of the
+tilt for a ``"tilt"`` mode, of the largest deformation part otherwise.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -34,9 +37,13 @@ class ModeShape:
     rigid_other : float
         Translations and the rotation about ``z`` (zero for a quotient mode).
     m : int
-        Azimuthal wavenumber of the largest deformation part.
+        Azimuthal wavenumber of the part the label names (the tilt for ``"tilt"``, the
+        largest deformation part otherwise).
     label : str
         ``"tilt"``, ``"breathing"``, ``"in-plane"``, ``"sliding"`` or ``"out-of-plane"``.
+    wavenumbers : dict of str to int
+        The wavenumber of every part (``"tilt"``, ``"out_of_plane"``, ``"radial"``,
+        ``"tangential"``) that holds power.
     """
 
     tilt: float
@@ -46,12 +53,24 @@ class ModeShape:
     rigid_other: float
     m: int
     label: str
+    wavenumbers: dict = field(default_factory=dict)
 
     def describe(self) -> str:
-        """One line, e.g. ``"tilt (tilt 71 %, out-of-plane 20 %, in-plane 9 %, m = 1)"``."""
-        return (f"{self.label} (tilt {self.tilt:.0%}, out-of-plane {self.out_of_plane:.0%}, "
-                f"in-plane radial {self.radial:.0%}, tangential {self.tangential:.0%}, "
-                f"m = {self.m})").replace("%", " %")
+        """One line, each part's wavenumber beside its own share (parts of 1 % or more).
+
+        E.g. ``"tilt m = 1: tilt 89 % (m = 1), out-of-plane 11 % (m = 2), in-plane radial
+        0 %, tangential 0 %"``.
+        """
+        def part(name: str, key: str, value: float) -> str:
+            m = self.wavenumbers.get(key)
+            wave = f" (m = {m})" if m is not None and value >= 0.005 else ""
+            return f"{name} {value:.0%}{wave}".replace("%", " %")
+
+        parts = (part("tilt", "tilt", self.tilt),
+                 part("out-of-plane", "out_of_plane", self.out_of_plane),
+                 part("in-plane radial", "radial", self.radial),
+                 part("tangential", "tangential", self.tangential))
+        return f"{self.label} m = {self.m}: {', '.join(parts)}"
 
 
 def _rigid_basis(x: np.ndarray) -> np.ndarray:
@@ -96,12 +115,13 @@ def describe_mode(x: np.ndarray, mode: np.ndarray) -> ModeShape:
     tangent_dir = np.stack([-radial_dir[:, 1], radial_dir[:, 0], np.zeros(len(x))], axis=1)
     phi = np.arctan2(x[:, 1], x[:, 0])
     total = tilt = rigid = oop = rad = tan = 0.0
-    comps = {"out_of_plane": [], "radial": [], "tangential": []}
+    comps = {"tilt": [], "out_of_plane": [], "radial": [], "tangential": []}
     for part in parts:
         v = np.asarray(part, dtype=float).ravel()
         coef = basis @ v
         total += float(v @ v)
         tilt += float(np.sum(coef[:2] ** 2))
+        comps["tilt"].append((basis[:2].T @ coef[:2]).reshape(x.shape)[:, 2])
         rigid += float(np.sum(coef[2:] ** 2))
         d = (v - basis.T @ coef).reshape(x.shape)
         r_c = np.sum(d * radial_dir, axis=1)
@@ -113,13 +133,17 @@ def describe_mode(x: np.ndarray, mode: np.ndarray) -> ModeShape:
         comps["radial"].append(r_c)
         comps["tangential"].append(t_c)
     if total == 0:
-        return ModeShape(0.0, 0.0, 0.0, 0.0, 0.0, 0, "none")
+        return ModeShape(0.0, 0.0, 0.0, 0.0, 0.0, 0, "none", {})
     fractions = {"out_of_plane": oop / total, "radial": rad / total,
                  "tangential": tan / total}
     largest = max(fractions, key=fractions.get)
-    m = _wavenumber(np.array(comps[largest]), phi)
+    power = {"tilt": tilt / total, **fractions}
+    wavenumbers = {key: _wavenumber(np.array(comps[key]), phi)
+                   for key, share in power.items() if share > 1e-12}
+    m = wavenumbers.get(largest, 0)
     if tilt / total >= 0.5:
         label = "tilt"
+        m = wavenumbers["tilt"]
     elif largest == "radial":
         label = "breathing" if m == 0 else "in-plane"
     elif largest == "tangential":
@@ -127,4 +151,4 @@ def describe_mode(x: np.ndarray, mode: np.ndarray) -> ModeShape:
     else:
         label = "out-of-plane"
     return ModeShape(tilt / total, fractions["out_of_plane"], fractions["radial"],
-                     fractions["tangential"], rigid / total, m, label)
+                     fractions["tangential"], rigid / total, m, label, wavenumbers)

@@ -118,6 +118,7 @@ def orbit_summary(orbit, result=None, shape=None, extra: dict | None = None) -> 
         out["leading_mode_shape"] = {
             "label": shape.label, "tilt": shape.tilt, "out_of_plane": shape.out_of_plane,
             "radial": shape.radial, "tangential": shape.tangential, "m": shape.m,
+            "wavenumbers": dict(shape.wavenumbers),
         }
     out.update(extra or {})
     return out
