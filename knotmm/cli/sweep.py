@@ -20,12 +20,25 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "DIR/summary.csv has one row per point and DIR/ratios.png plots the time-scale "
             "ratios. Running it again skips finished points and redoes the others. One sweep "
             "at a time owns a sweep directory: a second one is refused (exit status 2, "
-            "naming the first one's process id). Exit status 1 when some point failed, 3 "
+            "naming the first one's process id). --set and --duration apply to every point "
+            "(recorded in each run.toml and in DIR/sweep.toml); a key the sweep varies "
+            "cannot be set, and a sweep directory is continued only with the same --set "
+            "and --duration it was started with. Exit status 1 when some point failed, 3 "
             "when summary.csv cannot be written after points ran."
         ),
     )
     p.add_argument("sweep_file", metavar="SWEEP.toml", help="sweep file (TOML)")
     p.add_argument("--out", metavar="DIR", help="sweep directory (default: output.directory)")
+    p.add_argument("--duration", type=float, metavar="T",
+                   help="simulated time of every point, in tau_d (as --set run.duration=T)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="TABLE.KEY=VALUE",
+        help="override a run-file key at every point, e.g. --set run.peclet=10 "
+        "(repeatable; not a key that [sweep] varies)",
+    )
     p.add_argument(
         "--workers",
         type=int,
@@ -68,12 +81,24 @@ def execute(args) -> int:
     """Validate the whole sweep, then run it; 0 when every point finished, else 1."""
     import sys
 
+    from knotmm.config import parse_override
     from knotmm.errors import ConfigError
     from knotmm.sweep import check_points, describe_points, load_sweep_file, run_sweep
 
     if args.workers is not None and args.workers < 0:
         raise ConfigError(f"--workers {args.workers}: expected an integer >= 0")
-    sweep = load_sweep_file(args.sweep_file, directory=args.out)
+    overrides = {}
+    for text in args.set:
+        try:
+            key, value = parse_override(text)
+        except ConfigError as exc:
+            message = str(exc)
+            raise ConfigError(message if message.startswith("--set") else
+                              f"--set {text}: {message}") from None
+        overrides[key] = value
+    if args.duration is not None:
+        overrides["run.duration"] = args.duration
+    sweep = load_sweep_file(args.sweep_file, directory=args.out, overrides=overrides)
     for note in sweep.notes:
         print(f"knotmm: note: {note}", file=sys.stderr)
     if args.dry_run:  # the checks `knotmm run` makes, on every point; nothing is written

@@ -18,6 +18,14 @@ Running a sweep (:func:`run_sweep`, ``knotmm sweep``) writes into the sweep dire
 ``DIR/.knotmm.lock``     held (``flock``) by the sweep running in ``DIR``, with its process id
 =======================  ====================================================================
 
+A sweep directory is continued only with the keys it was started with set at every point
+(``--set``, ``--duration``; ``[sweep.set]`` of ``DIR/sweep.toml``): a call that sets other
+keys or values, or none where the first set some, is refused in one line (exit status 2)
+naming both, before anything is written. Forgetting ``--duration 100`` on a second call
+would otherwise run every finished point again at the file's duration; to change them, give
+another ``--out`` (or remove ``DIR``). ``knotmm sweep DIR/sweep.toml`` continues a sweep
+with the keys it recorded.
+
 One sweep at a time owns a sweep directory: a sweep holds its lock
 (:class:`~knotmm.io.rundir.RunLock`, the run directory's lock) from before its first look at
 the directory until it returns, and a second sweep on it is refused at once, naming the
@@ -66,7 +74,7 @@ from knotmm.sweep.local import default_workers, run_local
 from knotmm.sweep.plan import plan_point
 from knotmm.sweep.plots import save_sweep_plots
 from knotmm.sweep.point import error_text, run_point
-from knotmm.sweep.spec import SWEEP_FILE, Sweep
+from knotmm.sweep.spec import SWEEP_FILE, Sweep, describe_set, set_table
 from knotmm.sweep.summary import SUMMARY_FILE, summary_text, summary_values
 
 __all__ = ["SweepResult", "run_sweep"]
@@ -177,7 +185,9 @@ def run_sweep(
     ------
     RunDirectoryError
         If the sweep directory holds files but no knotmm sweep, or another live sweep owns it
-        (the message names its process id); nothing is written then.
+        (the message names its process id), or it holds a sweep started with other keys set
+        at every point (``sweep.overrides``: ``--set``, ``--duration``); nothing is written
+        then.
     ConfigError
         Bad ``workers``; Dask missing or the scheduler unreachable.
     KeyboardInterrupt
@@ -257,7 +267,31 @@ def _foreign(directory: Path) -> bool:
     )
 
 
+def _same_set(directory: Path, sweep: Sweep) -> None:
+    """Refuse (one line) to continue a sweep directory started with other keys set."""
+    from knotmm.config import read_toml
+
+    previous = directory / SWEEP_FILE
+    if not previous.is_file():
+        return
+    try:
+        table = read_toml(previous, what="sweep file").get("sweep", {})
+        before = set_table(table.get("set") if isinstance(table, Mapping) else None)
+    except ConfigError:  # an unreadable record is replaced, as before
+        return
+    now = dict(sweep.overrides)
+    if before.keys() == now.keys() and all(before[k] == now[k] for k in now):
+        return
+    raise RunDirectoryError(
+        f"sweep refused: {str(directory)!r} was started with {describe_set(before)} (its "
+        f"{SWEEP_FILE}) and this call gives {describe_set(now)}: give the same to continue "
+        f"it (or run `knotmm sweep {previous}`), or another --out (its finished points would "
+        f"be run again)"
+    )
+
+
 def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wall0):
+    _same_set(directory, sweep)
     with writing(directory / SWEEP_FILE):  # nothing run yet: one line, exit code 2
         write_text_atomic(directory / SWEEP_FILE, sweep.to_toml())
     analysis_kwargs = {

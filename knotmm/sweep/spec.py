@@ -32,7 +32,17 @@ The ``[sweep]`` table also takes these options (names without a dot):
 ``knot_samples``   frames checked for a change of knot type per point (default 40; 0 skips)
 ``t_from``         analysis window start / end, in tau_d (default: detected per point)
 ``t_to``
+``set``            a table of dotted keys and values applied to every point, as
+                   ``knotmm sweep --set KEY=VALUE`` / ``--duration T`` do (those add to
+                   it); the sweep directory's ``sweep.toml`` records them here
 =================  ==========================================================================
+
+Keys set from the command line (``--set``, ``--duration``: :func:`load_sweep_file`'s
+``overrides``) replace the file's values at every point, so each point's ``run.toml``
+records them; a key the sweep varies (a ``[sweep]`` list, or ``run.seed`` with ``seeds =
+K``) cannot be set. ``DIR/sweep.toml`` holds the sweep with them applied and lists them
+under ``[sweep.set]``; a sweep directory is only continued with the same keys and values
+set (:func:`knotmm.sweep.runner.run_sweep` refuses otherwise, in one line).
 
 Running a sweep (:func:`knotmm.sweep.run_sweep`) writes ``DIR/sweep.toml`` (the sweep file as
 read), one ordinary run directory per point and ``DIR/summary.csv``
@@ -62,7 +72,9 @@ __all__ = [
     "Sweep",
     "SweepOptions",
     "describe_points",
+    "describe_set",
     "load_sweep_file",
+    "set_table",
 ]
 
 #: Copy of the sweep file written into the sweep directory.
@@ -122,6 +134,9 @@ class Sweep:
         The sweep file as parsed (nested tables), for ``DIR/sweep.toml``.
     notes : list of str
         Warnings found while reading (e.g. identical replicas).
+    overrides : dict of str to value
+        Keys set at every point from outside the run tables (``[sweep.set]`` and the
+        command line's ``--set``/``--duration``), in the order given.
     """
 
     base: RunConfig
@@ -131,6 +146,7 @@ class Sweep:
     points: list[SweepPoint]
     data: dict[str, Any]
     notes: list[str] = field(default_factory=list)
+    overrides: dict[str, Any] = field(default_factory=dict)
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -156,7 +172,10 @@ class Sweep:
 
     @classmethod
     def from_dict(
-        cls, data: Mapping[str, Any], directory: str | os.PathLike | None = None
+        cls,
+        data: Mapping[str, Any],
+        directory: str | os.PathLike | None = None,
+        overrides: Mapping[str, Any] | None = None,
     ) -> Sweep:
         """Validate a parsed sweep file and expand its points.
 
@@ -166,13 +185,16 @@ class Sweep:
             The nested tables of a sweep file (a run file plus ``[sweep]``).
         directory : path, optional
             The sweep directory, replacing ``output.directory``.
+        overrides : mapping of dotted key to value, optional
+            Keys set at every point (``--set``, ``--duration``), after the file's
+            ``[sweep.set]``.
 
         Raises
         ------
         ConfigError
             One line naming the key: an unknown key or option, a value that is not a list,
-            an empty or duplicated list entry, unequal lists in zip mode, or any point whose
-            run configuration is invalid.
+            an empty or duplicated list entry, unequal lists in zip mode, a set key that the
+            sweep varies, or any point whose run configuration is invalid.
         """
         if not isinstance(data, Mapping):
             raise ConfigError("a sweep file must be a table of tables")
@@ -186,8 +208,12 @@ class Sweep:
         resolved = data.pop("knotmm", None) is not None  # a run's run.toml plus [sweep]
         if not isinstance(table, Mapping):
             raise ConfigError(f"[sweep] must be a table, got {table!r}")
+        table = dict(table)
+        given = {**set_table(table.pop("set", None)), **dict(overrides or {})}
         swept, raw_options = _split_sweep_table(table)
         options = _check_options(raw_options)
+        _check_set(given, swept, options)
+        _apply_set(data, given, resolved)
         if directory is None and "directory" not in data.get("output", {}):
             directory = DEFAULT_DIRECTORY
         base = RunConfig.from_dict(data)
@@ -287,7 +313,9 @@ class Sweep:
         data_out = copy.deepcopy(dict(data))
         data_out.setdefault("output", {})["directory"] = str(sweep_dir.resolve())
         data_out["sweep"] = copy.deepcopy(dict(table))
-        return cls(base, values, options, sweep_dir, points, data_out, notes)
+        if given:
+            data_out["sweep"]["set"] = copy.deepcopy(given)
+        return cls(base, values, options, sweep_dir, points, data_out, notes, given)
 
     def to_toml(self) -> str:
         """The sweep file text (as read, with the sweep directory as an absolute path)."""
@@ -304,6 +332,83 @@ def _without_radius(cfg: RunConfig) -> RunConfig:
     data = cfg.to_dict()
     data["knot"].pop("major_radius", None)
     return RunConfig.from_dict(data)
+
+
+def set_table(node: Any) -> dict[str, Any]:
+    """The ``[sweep.set]`` table as ``{dotted key: value}`` (quoted or nested keys)."""
+    if node is None:
+        return {}
+    if not isinstance(node, Mapping):
+        raise ConfigError(
+            f'[sweep] set = {node!r}: expected a table of keys, e.g. set = {{"run.duration" '
+            f"= 100.0}}"
+        )
+    flat: dict[str, Any] = {}
+
+    def walk(prefix: str, table: Mapping[str, Any]) -> None:
+        for key, value in table.items():
+            dotted = f"{prefix}.{key}" if prefix else key
+            if isinstance(value, Mapping):
+                walk(dotted, value)
+            else:
+                flat[dotted] = value
+
+    walk("", node)
+    return flat
+
+
+def describe_set(overrides: Mapping[str, Any]) -> str:
+    """The set keys as command-line options: ``"--set run.duration=100.0"`` or ``"no --set"``."""
+    if not overrides:
+        return "no --set"
+    return " ".join(f"--set {k}={format_set_value(v)}" for k, v in overrides.items())
+
+
+def format_set_value(value: Any) -> str:
+    """A value as ``--set`` reads it back (TOML syntax; strings bare)."""
+    if isinstance(value, str):
+        return value
+    import tomli_w
+
+    return tomli_w.dumps({"v": value}).strip()[len("v = "):]
+
+
+def _check_set(given: Mapping[str, Any], swept: Mapping[str, Any], options: SweepOptions) -> None:
+    """Refuse an unknown set key, and one that the sweep varies (one line naming it)."""
+    for dotted, value in given.items():
+        try:
+            split_key(dotted)
+        except ConfigError as exc:
+            raise ConfigError(f"--set {dotted}={format_set_value(value)}: {exc}") from None
+        varied = dotted in swept or (dotted == "run.seed" and options.seeds is not None)
+        if varied:
+            how = "seeds = K gives every replica its own run.seed" if dotted == "run.seed" \
+                else f"[sweep] lists {dotted} = {swept[dotted]!r}"
+            flag = "--duration or --set" if dotted == "run.duration" else "--set"
+            raise ConfigError(
+                f"{flag} {dotted}={format_set_value(value)}: the sweep varies {dotted} ({how}); "
+                f"a key set for every point cannot also be swept: drop it from the command "
+                f"line, or change the list in the sweep file"
+            )
+        if dotted == "output.directory":
+            raise ConfigError(
+                f"--set output.directory={value}: the sweep directory is given with --out "
+                f"(every point gets its own directory inside it)"
+            )
+
+
+def _apply_set(data: dict[str, Any], given: Mapping[str, Any], resolved: bool) -> None:
+    """Write the set keys into the run tables of ``data`` (in place)."""
+    for dotted, value in given.items():
+        table, name = split_key(dotted)
+        if not isinstance(data.get(table, {}), Mapping):
+            raise ConfigError(f"--set {dotted}: [{table}] of the sweep file is not a table")
+        data[table] = dict(data.get(table, {}))
+        data[table][name] = copy.deepcopy(value)
+    if resolved and "knot.beads" in given and "knot.major_radius" not in given:
+        # a run.toml's resolved radius belongs to its bead count: let it follow knot.beads
+        if isinstance(data.get("knot"), Mapping):
+            data["knot"].pop("major_radius", None)
 
 
 def _split_sweep_table(table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -379,7 +484,11 @@ def _check_options(raw: Mapping[str, Any]) -> SweepOptions:
     )
 
 
-def load_sweep_file(path: str | os.PathLike, directory: str | os.PathLike | None = None) -> Sweep:
+def load_sweep_file(
+    path: str | os.PathLike,
+    directory: str | os.PathLike | None = None,
+    overrides: Mapping[str, Any] | None = None,
+) -> Sweep:
     """Read and validate a sweep file (see the module docstring).
 
     Parameters
@@ -389,6 +498,9 @@ def load_sweep_file(path: str | os.PathLike, directory: str | os.PathLike | None
     directory : path, optional
         The sweep directory, replacing the file's ``output.directory`` (default when the file
         has none: ``sweeps/<file stem>``).
+    overrides : mapping of dotted key to value, optional
+        Keys set at every point (``knotmm sweep --set``, ``--duration``; see the module
+        docstring).
 
     Raises
     ------
@@ -400,7 +512,7 @@ def load_sweep_file(path: str | os.PathLike, directory: str | os.PathLike | None
     if directory is None and not (isinstance(output, Mapping) and "directory" in output):
         directory = Path("sweeps") / Path(path).stem
     try:
-        return Sweep.from_dict(data, directory=directory)
+        return Sweep.from_dict(data, directory=directory, overrides=overrides)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
 
@@ -415,7 +527,8 @@ def describe_points(sweep: Sweep, errors: Mapping[str, str] | None = None) -> st
         Points that cannot run (:func:`knotmm.sweep.check.check_points`): marked in the
         listing, and counted at its end. Without it the points are only listed.
     """
-    lines = [f"{len(sweep.points)} points in {sweep.directory} ({sweep.options.mode}):"]
+    given = f"; every point with {describe_set(sweep.overrides)}" if sweep.overrides else ""
+    lines = [f"{len(sweep.points)} points in {sweep.directory} ({sweep.options.mode}{given}):"]
     for p in sweep.points:
         mark = "  cannot run" if errors and p.name in errors else ""
         lines.append(f"  {p.index:4d}  {p.name}{mark}")
