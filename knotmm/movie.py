@@ -36,6 +36,7 @@ import numpy as np
 from knotmm.errors import ConfigError, KnotmmError
 from knotmm.io.atomic import replacing
 from knotmm.io.rundir import check_output_file, writing_output
+from knotmm.progress import Progress
 
 __all__ = ["MovieResult", "make_movie", "render_frames", "mp4_available", "MAX_AUTO_FRAMES"]
 
@@ -278,6 +279,7 @@ def make_movie(
     t_from: float | None = None,
     t_to: float | None = None,
     dpi: float = 80,
+    progress: bool | None = None,
 ) -> MovieResult:
     """Render a run's trajectory as a movie (MP4 with imageio-ffmpeg, else GIF).
 
@@ -301,6 +303,10 @@ def make_movie(
         Time window of the trajectory to show, in tau_d.
     dpi : float
         Resolution (the frame is 12 x 4.6 inches: 960 x 368 pixels at 80 dpi).
+    progress : bool, optional
+        True: a bar of the frames drawn; False: nothing; None (default): a bar when stderr
+        is a terminal, else a line each time another 10 % is drawn
+        (:class:`knotmm.progress.Progress`).
 
     Returns
     -------
@@ -362,9 +368,10 @@ def make_movie(
     # the movie goes to a temporary name beside `out` and is renamed when complete, so a
     # full disk or a stop never leaves a truncated movie under the final name
     try:
-        with writing_output(out, kept=kept), replacing(out) as tmp, \
+        with Progress(len(idx), "movie", "frames", enabled=progress) as shown, \
+                writing_output(out, kept=kept), replacing(out) as tmp, \
                 writing_output(out, kept=kept):
-            count = write(tmp, _drawn(frames), fps)
+            count = write(tmp, _counted(_drawn(frames), shown), fps)
     except _DrawingFailed as exc:  # not a write failure: drawing a frame went wrong
         raise exc.original from None
     log.info("wrote %s (%d frames)", out, count)
@@ -377,6 +384,13 @@ class _DrawingFailed(KnotmmError):
     def __init__(self, original: BaseException):
         super().__init__(str(original))
         self.original = original
+
+
+def _counted(frames, shown):
+    """The frames, each counted on ``shown`` (a :class:`~knotmm.progress.Progress`)."""
+    for frame in frames:
+        yield frame
+        shown.update(1)
 
 
 def _drawn(frames):

@@ -54,6 +54,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         default=80.0,
         help="resolution; the frame is 12 x 4.6 inches (default 80)",
     )
+    bar = p.add_mutually_exclusive_group()
+    bar.add_argument("--progress", dest="progress", action="store_true", default=None,
+                     help="always show the progress bar")
+    bar.add_argument("--no-progress", dest="progress", action="store_false",
+                     help="never show the progress bar (default: a bar on a terminal, else "
+                     "a line every 10 %%)")
     p.set_defaults(execute=execute)
     return p
 
@@ -85,6 +91,7 @@ def _execute(args) -> int:
         t_from=args.t_from,
         t_to=args.t_to,
         dpi=args.dpi,
+        progress=args.progress,
     )
     print(result.summary())
     return 0

@@ -52,7 +52,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import sys
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -69,6 +68,7 @@ from knotmm.io.rundir import (
     lock_owner,
     writing,
 )
+from knotmm.progress import Progress
 from knotmm.sweep.dask import dask_client, run_dask
 from knotmm.sweep.local import default_workers, run_local
 from knotmm.sweep.plan import plan_point
@@ -173,7 +173,9 @@ def run_sweep(
         run the points on that cluster. Its workers must have knotmm installed and see the
         sweep directory at the same path.
     progress : bool, optional
-        Show an overall progress bar (points); default: only when stderr is a terminal.
+        True: a progress bar (points); False: nothing; None (default): a bar when stderr is
+        a terminal, else a line each time another 10 % of the points is done
+        (:class:`knotmm.progress.Progress`).
     reanalyze : bool
         Analyse finished points again instead of skipping them.
 
@@ -333,19 +335,9 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
         write_text_atomic(summary_path, summary_text(sweep.columns, rows))
 
     bar = None
-    if progress is None:
-        progress = hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
-    if progress and tasks:
-        from tqdm import tqdm
-
-        bar = tqdm(
-            total=len(rows),
-            initial=len(rows) - len(tasks),
-            unit="point",
-            desc="sweep",
-            file=sys.stderr,
-            dynamic_ncols=True,
-        )
+    if tasks:  # a bar on a terminal, else a line every 10 % of the points (knotmm.progress)
+        bar = Progress(len(rows), "sweep", "points", enabled=progress,
+                       initial=len(rows) - len(tasks))
     n_failed = 0
 
     def on_result(result: Mapping[str, Any]) -> None:
@@ -360,9 +352,7 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
             log.info("point %s finished", result["name"])
         _write_summary(summary_path, sweep.columns, rows)
         if bar is not None:
-            bar.update(1)
-            if n_failed:
-                bar.set_postfix(failed=n_failed)
+            bar.update(1, f"{n_failed} failed" if n_failed else "")
 
     stopped = None
     try:
