@@ -13,6 +13,8 @@ import numpy as np
 
 from knotmm.analysis.fit import scaled_coordinates
 from knotmm.analysis.result import AnalysisResult
+from knotmm.plotstyle import label as axis_label
+from knotmm.plotstyle import plain_ticks
 
 __all__ = [
     "plot_com_height",
@@ -54,8 +56,10 @@ def _new_axes(projection=None):
 def _shade_window(ax, result: AnalysisResult, labels: bool = False) -> None:
     """Shade the window; mark the radius collapse (red dashes) and knot-type change (purple)."""
     win = result.window
-    ax.axvspan(win.t0, win.t1, color="0.9", zorder=0, lw=0)
-    if win.collapse_time is not None:
+    if _steady(result):
+        ax.axvspan(win.t0, win.t1, color="0.9", zorder=0, lw=0)
+    # a collapse "at" the first frame is no event to mark
+    if win.collapse_time is not None and win.collapse_time > result.data.times[0]:
         ax.axvline(
             win.collapse_time,
             color="tab:red",
@@ -67,6 +71,11 @@ def _shade_window(ax, result: AnalysisResult, labels: bool = False) -> None:
     if kt.changed_at is not None:
         text = f"knot {kt.initial} changes" if labels else None
         ax.axvline(kt.changed_at, color="tab:purple", ls=":", lw=1.5, label=text)
+
+
+def _steady(result: AnalysisResult) -> bool:
+    """Whether the analysis found a steady window (not the whole run taken for want of one)."""
+    return not any("no frame is steady" in n for n in [*result.window.notes, *result.notes])
 
 
 def _default_beads(n: int, count: int = 3, q: int | None = None) -> list[int]:
@@ -173,12 +182,16 @@ def plot_time_series(result: AnalysisResult, axes=None):
     plot_com_height(result, ax=axes[0])
     for ax, which in zip(axes[1:], ("rho", "alpha", "z"), strict=True):
         plot_bead_coordinate(result, which, ax=ax)
-    axes[-1].set_xlabel(r"t [$\tau_d$]")
+    axes[-1].set_xlabel(axis_label("time"))
     win = result.window
-    axes[0].set_title(
-        f"steady window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded); end: {win.end_reason}",
-        fontsize="medium",
-    )
+    if _steady(result):
+        title = (f"steady window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded); "
+                 f"end: {win.end_reason}")
+    else:
+        title = "no steady window found: the whole run is analysed"
+    axes[0].set_title(title, fontsize="medium")
+    for ax in axes:
+        plain_ticks(ax)
     return axes
 
 
@@ -210,25 +223,21 @@ def plot_spectrum(result: AnalysisResult, ax=None):
     f_max = min(max(3.0 * f_sw, 3.0 * f_rot), 0.5 / result.data.frame_interval)
     for spec, color, label, tau in specs:
         keep = np.abs(spec.frequencies) <= f_max
-        ax.semilogy(spec.frequencies[keep], spec.power[keep], color=color, lw=1, label=label)
         peak = spec.peak
-        ax.axvline(peak.frequency, color=color, ls="--", lw=0.8)
-        text = f"${tau}$ = {peak.period:.4g} $\\pm$ {peak.period_uncertainty:.2g}"
+        text = (f"${tau}$ = {float(f'{peak.period:.4g}'):g} $\\pm$ "
+                f"{float(f'{peak.period_uncertainty:.2g}'):g} "
+                f"$\\tau_d$")
         if spec.name == "swirl" and not result.swirl_detected:
-            text = "no swirl detected (or a tilted torus): highest point only"
-        ax.annotate(
-            text,
-            xy=(peak.frequency, 1.0),
-            xytext=(4, -12 if spec.name == "swirl" else -26),
-            textcoords="offset points",
-            color=color,
-            fontsize="small",
-        )
+            text = "no swirl detected: dashes at the highest point"
+        ax.semilogy(spec.frequencies[keep], spec.power[keep], color=color, lw=1,
+                    label=f"{label}; {text}")
+        ax.axvline(peak.frequency, color=color, ls="--", lw=0.8)
     ax.set_ylim(1e-6, 3.0)
     ax.set_xlim(-f_max, f_max)
-    ax.set_xlabel(r"frequency [1/$\tau_d$]  (rotation > 0: counterclockwise from above)")
-    ax.set_ylabel("power (normalised)")
-    ax.legend(loc="lower left", fontsize="small", frameon=False)
+    ax.set_xlabel(axis_label("frequency") + " (> 0: counterclockwise seen from above)")
+    ax.set_ylabel("power / peak power")
+    ax.legend(loc="lower center", fontsize="small", frameon=False)
+    plain_ticks(ax)
     return ax
 
 
@@ -353,9 +362,10 @@ def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = 
             setter(-half, half)
         ax.set_box_aspect((1, 1, 1))
         ax.view_init(elev=25, azim=-60)
-        ax.set_xlabel("x [d]")
-        ax.set_ylabel("y [d]")
-        ax.set_title(f"t = {t:g} $\\tau_d$ (z up, in d)", fontsize="medium")
+        ax.set_xlabel(r"$x$ [$d$]")
+        ax.set_ylabel(r"$y$ [$d$]")
+        ax.set_zlabel(r"$z$ [$d$]")
+        ax.set_title(f"$t$ = {t:g} $\\tau_d$ ($z$ up)", fontsize="medium")
         return ax
     import matplotlib
 
@@ -402,7 +412,10 @@ def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = 
 
 
 def save_plots(result: AnalysisResult, directory, dpi: int = 150) -> list[Path]:
-    """Write the four PNG files of :data:`PLOT_FILES` into ``directory``.
+    """Write the PNG files of :data:`PLOT_FILES` into ``directory``.
+
+    Without a vortex-knot fit (``result.fit`` None) the collapse figure is not written (one
+    from an earlier analysis is removed) and a note in ``result.notes`` says so.
 
     Returns
     -------
@@ -422,9 +435,14 @@ def save_plots(result: AnalysisResult, directory, dpi: int = 150) -> list[Path]:
     plot_spectrum(result, ax=fig.add_subplot())
     written.append(_save(fig, out / PLOT_FILES["spectrum"], dpi))
 
-    fig = Figure(figsize=(8, 4.5), layout="constrained")
-    plot_collapse(result, ax=fig.add_subplot())
-    written.append(_save(fig, out / PLOT_FILES["collapse"], dpi))
+    collapse = out / PLOT_FILES["collapse"]
+    if result.fit is not None:
+        fig = Figure(figsize=(8, 4.5), layout="constrained")
+        plot_collapse(result, ax=fig.add_subplot())
+        written.append(_save(fig, collapse, dpi))
+    else:  # no figure of an empty fit; one left by an earlier analysis would mislead
+        collapse.unlink(missing_ok=True)
+        result.notes.append(f"{PLOT_FILES['collapse']} not written: no vortex-knot fit")
 
     fig = Figure(figsize=(13, 4.6), layout="constrained")
     grid = fig.add_gridspec(1, 3, width_ratios=(1.0, 1.3, 1.0))

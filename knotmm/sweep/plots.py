@@ -26,6 +26,8 @@ from pathlib import Path
 from typing import Any
 
 from knotmm.io.atomic import write_atomic
+from knotmm.plotstyle import integer_ticks, plain_ticks
+from knotmm.plotstyle import label as axis_label
 
 __all__ = ["plot_ratios", "plot_shape", "save_sweep_plots", "RATIO_PLOT", "SHAPE_PLOT"]
 
@@ -36,15 +38,6 @@ MIN_FIT_R2 = 0.5
 RATIO_PLOT = "ratios.png"
 SHAPE_PLOT = "shape.png"
 
-_LABELS = {
-    "knot.beads": "number of beads N",
-    "model.bending_stiffness": "bending stiffness A [F0 d]",
-    "model.bond_stiffness": "bond stiffness B [F0/d]",
-    "model.lj_epsilon": "steric energy eps [F0 d]",
-    "knot.minor_radius": "template minor radius a [d]",
-    "point": "point",
-    "replica": "replica",
-}
 
 
 def _finite(value: Any) -> bool:
@@ -121,20 +114,22 @@ def _draw(ax, series, numeric: bool, positions: dict, x: str, log_x: bool | None
         xs_all.extend(xs)
         ys_all.extend(ys)
         uniq = np.unique(xs)
-        if len(uniq) < len(xs):  # replicas: individual values, then mean +- std
-            ax.plot(xs, ys, "o", ms=3, alpha=0.35, color=color)
+        if len(uniq) < len(xs):  # replicas: faint markers, then mean +- standard error
+            ax.plot(xs, ys, "o", ms=3, alpha=0.3, mec="none", color=color)
             means = np.array([ys[xs == u].mean() for u in uniq])
-            stds = np.array([ys[xs == u].std() for u in uniq])
-            ax.errorbar(
-                uniq, means, yerr=stds, fmt="o-", color=color, capsize=3, label=label or None
-            )
+            counts = np.array([np.sum(xs == u) for u in uniq])
+            sems = np.array([ys[xs == u].std(ddof=1) if c > 1 else 0.0
+                             for u, c in zip(uniq, counts, strict=True)]) / np.sqrt(counts)
+            fmt = "o-" if len(uniq) > 1 else "o"
+            ax.errorbar(uniq, means, yerr=sems, fmt=fmt, color=color, capsize=3,
+                        label=(label + " " if label else "") + "mean $\\pm$ s.e.")
         else:
             order = np.argsort(xs)
             ax.errorbar(
                 xs[order],
                 ys[order],
                 yerr=es[order],
-                fmt="o-",
+                fmt="o" if x in ("replica", "run.seed") else "o-",  # replicas are not a series
                 color=color,
                 capsize=3,
                 label=label or None,
@@ -150,7 +145,10 @@ def _draw(ax, series, numeric: bool, positions: dict, x: str, log_x: bool | None
             ax.set_xscale("log")
     if ys_all and min(ys_all) > 0 and max(ys_all) / min(ys_all) >= 30:
         ax.set_yscale("log")
-    ax.set_xlabel(_LABELS.get(x, x))
+    ax.set_xlabel(axis_label(x))
+    if numeric and x in ("replica", "knot.beads", "knot.p", "knot.q", "run.seed"):
+        integer_ticks(ax.xaxis)
+    plain_ticks(ax)
     ax.grid(True, alpha=0.3)
     handles, labels = ax.get_legend_handles_labels()
     if labels:
