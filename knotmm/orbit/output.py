@@ -31,6 +31,8 @@ from knotmm.io.atomic import replacing, write_atomic, write_text_atomic
 from knotmm.io.rundir import TOPOLOGY_FILE as TOPOLOGY
 from knotmm.io.rundir import writing_output
 from knotmm.orbit.flow import JVP_EPSILON, rms
+from knotmm.plotstyle import label as axis_label
+from knotmm.plotstyle import plain_ticks
 
 __all__ = ["ORBIT_FILE", "ORBIT_OUTPUTS", "BRANCH_OUTPUTS", "orbit_summary",
            "write_orbit_files", "plot_multipliers", "write_branch", "read_branch",
@@ -161,9 +163,10 @@ def plot_multipliers(result, path, title: str = "") -> None:
     ax.axhline(0, color="0.85", lw=0.8)
     ax.axvline(0, color="0.85", lw=0.8)
     ax.set_aspect("equal")
-    ax.set_xlabel("Re mu")
-    ax.set_ylabel("Im mu")
-    ax.set_title(title or f"T = {result.period:.4g} tau_d", fontsize=10)
+    ax.set_xlabel(axis_label("multiplier_re"))
+    ax.set_ylabel(axis_label("multiplier_im"))
+    ax.set_title(title or f"$T$ = {result.period:.4g} $\\tau_d$", fontsize=10)
+    plain_ticks(ax)
     ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -379,9 +382,9 @@ def _plot_branch(path, key, rows, bifurcations) -> None:
     p = [r[key] for r in rows]
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.4))
     axes[0].plot(p, [r["period"] for r in rows], "o-")
-    axes[0].set_ylabel("period T [tau_d]")
-    axes[1].plot(p, [r["tau_swirl_over_tau_sed"] for r in rows], "o-", label="tau_swirl/tau_sed")
-    axes[1].set_ylabel("tau_swirl / tau_sed")
+    axes[0].set_ylabel(axis_label("period"))
+    axes[1].plot(p, [r["tau_swirl_over_tau_sed"] for r in rows], "o-")
+    axes[1].set_ylabel(r"$\tau_{swirl} / \tau_{sed}$")
     k = 1
     while f"mu{k}_abs" in rows[0]:
         vals = [r[f"mu{k}_abs"] for r in rows]
@@ -390,12 +393,13 @@ def _plot_branch(path, key, rows, bifurcations) -> None:
                          color=f"C{(k - 1) % 10}")
         k += 1
     axes[2].axhline(1.0, color="k", lw=0.8)
-    axes[2].set_ylabel("|mu| (Floquet)")
+    axes[2].set_ylabel(r"Floquet multipliers $|\mu|$")
     for b in bifurcations:
         for ax in axes:
             ax.axvline(b.value, color="r", ls="--", lw=0.8)
     for ax in axes:
-        ax.set_xlabel(key)
+        ax.set_xlabel(axis_label(key))
+        plain_ticks(ax)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
