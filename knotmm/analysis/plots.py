@@ -360,7 +360,7 @@ def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = 
         half = float(np.abs(x).max()) * 1.05
         for setter in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
             setter(-half, half)
-        ax.set_box_aspect((1, 1, 1))
+        ax.set_box_aspect((1, 1, 1), zoom=0.8)  # room for the z label beside the side view
         ax.view_init(elev=25, azim=-60)
         ax.set_xlabel(r"$x$ [$d$]")
         ax.set_ylabel(r"$y$ [$d$]")
@@ -390,9 +390,9 @@ def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = 
             zorder=bead_z[i],
         )
     ax.set_aspect("equal")
-    ax.set_xlabel("x [d]")
+    ax.set_xlabel(r"$x$ [$d$]")
     if view == "side":
-        ax.set_ylabel("z [d]")
+        ax.set_ylabel(r"$z$ [$d$]")
         ax.annotate(
             "",
             xy=(0.04, 0.55),
@@ -401,11 +401,11 @@ def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = 
             arrowprops={"arrowstyle": "->", "color": "tab:red", "lw": 1.5},
         )
         ax.text(0.07, 0.85, "g", color="tab:red", transform=ax.transAxes)
-        ax.set_title(f"side view, t = {t:g} $\\tau_d$", fontsize="medium")
+        ax.set_title(f"side view, $t$ = {t:g} $\\tau_d$", fontsize="medium")
         pad = max(1.0, 0.6 * float(np.ptp(vertical)))
         ax.set_ylim(vertical.min() - pad, vertical.max() + pad)
     else:
-        ax.set_ylabel("y [d]")
+        ax.set_ylabel(r"$y$ [$d$]")
         sense = f", rotating {result.rotation_sense}" if result.rotation_sense else ""
         ax.set_title(f"seen from above{sense}", fontsize="medium")
     return ax
