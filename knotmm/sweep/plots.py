@@ -114,7 +114,14 @@ def _draw(ax, series, numeric: bool, positions: dict, x: str, log_x: bool | None
         xs_all.extend(xs)
         ys_all.extend(ys)
         uniq = np.unique(xs)
-        if len(uniq) < len(xs):  # replicas: faint markers, then mean +- standard error
+        if x == "replica" and len(xs) > 1:  # one point, K replicas: their mean +- s.e.
+            ax.plot(xs, ys, "o", ms=5, alpha=0.4, mec="none", color=color,
+                    label=(label + ": " if label else "") + "replicas")
+            mean, sem = ys.mean(), ys.std(ddof=1) / np.sqrt(len(ys))
+            ax.axhspan(mean - sem, mean + sem, color=color, alpha=0.15, lw=0)
+            ax.axhline(mean, color=color, lw=1.2,
+                       label=f"mean $\\pm$ s.e. of {len(ys)} replicas")
+        elif len(uniq) < len(xs):  # replicas: faint markers, then mean +- standard error
             ax.plot(xs, ys, "o", ms=3, alpha=0.3, mec="none", color=color)
             means = np.array([ys[xs == u].mean() for u in uniq])
             counts = np.array([np.sum(xs == u) for u in uniq])
