@@ -1,7 +1,9 @@
 """Run files (TOML) -> validated, resolved run parameters.
 
 A run file has four tables, ``[knot]``, ``[model]``, ``[run]`` and ``[output]``; every key has
-a default (the study's values), so an empty file is the default run. :data:`SCHEMA` is the
+a default (the study's values), so an empty file is the default run. Several chains in one
+fluid are an array of tables ``[[chains]]`` in place of ``[knot]``: each holds the keys of
+``[knot]`` plus ``offset`` and ``rotation`` (:data:`CHAIN_KEYS`). :data:`SCHEMA` is the
 single source of truth for key names, types, defaults, ranges and documentation. Validation
 is strict: unknown keys (with a did-you-mean), wrong types and impossible values raise
 :class:`knotmm.errors.ConfigError` with one line that names the key.
@@ -40,6 +42,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 __all__ = [
+    "CHAIN_KEYS",
     "SCHEMA",
     "Key",
     "RunConfig",
@@ -53,7 +56,7 @@ class Key:
 
     Parameters
     ----------
-    kind : {"int", "float", "bool", "str", "int_list"}
+    kind : {"int", "float", "bool", "str", "int_list", "float_list"}
         The TOML type expected. Integers are accepted where floats are expected.
     default : object
         The value used when the key is absent; ``None`` means "absent unless given" (such a
@@ -109,12 +112,14 @@ def resolve_tolerance(cfg, integrator: str) -> float:
 SCHEMA: dict[str, dict[str, Key]] = {
     "knot": {
         "kind": Key(
-            "str", "torus", "template kind", choices=("torus", "braid", "knotinfo", "file")
+            "str", "torus", "template kind: torus, braid, knotinfo (a knot or link name), file; "
+            "open filaments: straight, arc, helix",
+            choices=("torus", "braid", "knotinfo", "file", "straight", "arc", "helix"),
         ),
         "p": Key("int", 2, "torus knot: number of loops (windings around the torus axis)", 1),
         "q": Key("int", 3, "torus knot: windings through the torus hole", 1),
         "word": Key("int_list", None, "braid: signed generator indices, e.g. [1, -2, 1, -2]"),
-        "name": Key("str", None, "knotinfo: knot name such as '5_2'"),
+        "name": Key("str", None, "knotinfo: knot name such as '5_2', or a link such as 'L4a1'"),
         "path": Key("str", None, "file: PDB or DCD path (a DCD needs its PDB beside it)"),
         "frame": Key("int", 0, "file: frame index (negative counts from the end)"),
         "topology": Key("str", None, "file: topology PDB for a DCD path"),
@@ -128,6 +133,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
             0.0, None, True,
         ),
         "mirror": Key("bool", False, "true: the mirror image (left-handed for T(2,3))"),
+        "closed": Key(
+            "bool", None, "false: an open filament (no closing bond, no bending at its ends); "
+            "default: true, false for straight, arc and helix",
+        ),
+        "arc_degrees": Key("float", 180.0, "arc: the angle the arc spans, in degrees", 0.0,
+                           360.0, True),
+        "helix_radius": Key("float", 2.0, "helix: radius, in d", 0.0, None, True),
+        "helix_pitch": Key("float", 3.0, "helix: rise per turn along its axis (z), in d", 0.0),
         "perturbation": Key("float", 0.0, "random displacement of each bead (std), in d", 0.0),
         "seed": Key("int", None, "seed of the template perturbation; default: run.seed", 0),
     },
@@ -233,6 +246,54 @@ SCHEMA: dict[str, dict[str, Key]] = {
 }
 
 
+#: Keys of one ``[[chains]]`` entry: those of ``[knot]``, plus where the chain starts.
+CHAIN_KEYS: dict[str, Key] = {
+    **SCHEMA["knot"],
+    "offset": Key(
+        "float_list", [0.0, 0.0, 0.0], "[x, y, z]: where the chain's centre of mass starts, in d"
+    ),
+    "rotation": Key(
+        "float_list", None,
+        "[x, y, z, degrees]: the chain's template turned by that angle about that axis "
+        "(through its centre of mass) before the offset",
+    ),
+}
+
+
+def _check_chains(entries: Any) -> list[dict[str, Any]]:
+    """Validate a run file's ``[[chains]]`` array; return it with every key filled in."""
+    if not isinstance(entries, (list, tuple)) or not entries or not all(
+        isinstance(e, Mapping) for e in entries
+    ):
+        raise ConfigError(
+            "chains must be an array of tables ([[chains]] entries, one per chain), got "
+            f"{entries!r}"
+        )
+    out = []
+    for c, entry in enumerate(entries):
+        values = {}
+        for name in entry:
+            if name not in CHAIN_KEYS:
+                raise ConfigError(f"unknown key chains[{c}].{name}" + _suggest(name, CHAIN_KEYS))
+        for name, key in CHAIN_KEYS.items():
+            if name in entry:
+                values[name] = _check_value(f"chains[{c}].{name}", key, entry[name])
+            else:
+                values[name] = copy.deepcopy(key.default)
+        if len(values["offset"]) != 3:
+            raise ConfigError(
+                f"chains[{c}].offset = {values['offset']!r}: expected [x, y, z], 3 numbers in d"
+            )
+        rot = values["rotation"]
+        if rot is not None and (len(rot) != 4 or not any(rot[:3])):
+            raise ConfigError(
+                f"chains[{c}].rotation = {rot!r}: expected [x, y, z, degrees] with a non-zero "
+                "axis (x, y, z), e.g. [0, 0, 1, 90]"
+            )
+        out.append(values)
+    return out
+
+
 def _suggest(name: str, options) -> str:
     close = difflib.get_close_matches(name, list(options), n=1)
     return f"; did you mean '{close[0]}'?" if close else ""
@@ -246,6 +307,7 @@ def _check_value(dotted: str, key: Key, value: Any) -> Any:
         "bool": "true or false",
         "str": "a string",
         "int_list": "a list of integers",
+        "float_list": "a list of numbers",
     }[key.kind]
     if key.kind == "int":
         if isinstance(value, bool) or not isinstance(value, int):
@@ -278,6 +340,13 @@ def _check_value(dotted: str, key: Key, value: Any) -> Any:
         ):
             raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
         value = [int(v) for v in value]
+    elif key.kind == "float_list":
+        if not isinstance(value, (list, tuple)) or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            for v in value
+        ):
+            raise ConfigError(f"{dotted} = {value!r}: expected {expected} (finite)")
+        value = [float(v) for v in value]
     if key.kind in ("int", "float"):
         if key.minimum is not None:
             if key.exclusive_minimum and not value > key.minimum:
@@ -310,8 +379,9 @@ class RunConfig(Mapping):
     dotted keys that are set.
     """
 
-    def __init__(self, values: dict[str, dict[str, Any]]):
+    def __init__(self, values: dict[str, dict[str, Any]], chains: list | None = None):
         self._values = values
+        self._chains = chains
 
     # -- construction -------------------------------------------------------------------
     @classmethod
@@ -327,7 +397,17 @@ class RunConfig(Mapping):
         if not isinstance(data, Mapping):
             raise ConfigError(f"a run file must be a table of tables, got {type(data).__name__}")
         values: dict[str, dict[str, Any]] = {}
+        chains = None
+        if "chains" in data:
+            chains = _check_chains(data["chains"])
+            if "knot" in data:
+                raise ConfigError(
+                    "a run file gives either [knot] (one chain) or [[chains]] (several), not "
+                    "both: move the [knot] keys into a [[chains]] entry"
+                )
         for table in data:
+            if table == "chains":
+                continue
             if table not in SCHEMA:
                 extra = " ([sweep] tables belong in sweep files)" if table == "sweep" else ""
                 raise ConfigError(
@@ -348,7 +428,7 @@ class RunConfig(Mapping):
                     values[table][name] = _check_value(f"{table}.{name}", key, given[name])
                 else:
                     values[table][name] = copy.deepcopy(key.default)
-        cfg = cls(values)
+        cfg = cls(values, chains)
         cfg._check_consistency()
         return cfg
 
@@ -386,6 +466,21 @@ class RunConfig(Mapping):
     def __len__(self) -> int:
         return sum(1 for _ in self)
 
+    @property
+    def chains(self) -> list[dict[str, Any]] | None:
+        """The ``[[chains]]`` entries (every key filled in), or ``None`` for a ``[knot]`` run."""
+        return copy.deepcopy(self._chains)
+
+    def chain_config(self, index: int) -> RunConfig:
+        """The one-chain run configuration of ``[[chains]]`` entry ``index``: its keys as the
+        ``[knot]`` table (without ``offset`` and ``rotation``), the other tables as here."""
+        entry = {k: v for k, v in self._chains[index].items()
+                 if k in SCHEMA["knot"] and v is not None}
+        data = self.to_dict()
+        data.pop("chains")
+        data["knot"] = entry
+        return RunConfig.from_dict(data)
+
     def table(self, name: str) -> dict[str, Any]:
         """A copy of one table, ``{key: value}`` (unset optional keys are ``None``)."""
         if name not in self._values:
@@ -393,20 +488,32 @@ class RunConfig(Mapping):
         return dict(self._values[name])
 
     def replace(self, changes: Mapping[str, Any]) -> RunConfig:
-        """Return a validated copy with ``{"table.key": value}`` changes applied."""
+        """Return a validated copy with ``{"table.key": value}`` changes applied
+        (``"chains"``: a new ``[[chains]]`` array)."""
         data = self.to_dict(include_unset=False)
         for dotted, value in changes.items():
+            if dotted == "chains":  # the whole [[chains]] array (a template's resolved keys)
+                data["chains"] = value
+                continue
             table, name = split_key(dotted)
             data.setdefault(table, {})[name] = value
         return RunConfig.from_dict(data)
 
     # -- output -------------------------------------------------------------------------
     def to_dict(self, include_unset: bool = False) -> dict[str, dict[str, Any]]:
-        """Nested ``{table: {key: value}}``; unset optional keys only if ``include_unset``."""
-        return {
+        """Nested ``{table: {key: value}}``; unset optional keys only if ``include_unset``.
+        A ``[[chains]]`` run has ``"chains"``, a list of tables, in place of ``"knot"``."""
+        out: dict[str, Any] = {
             table: {k: copy.deepcopy(v) for k, v in keys.items() if include_unset or v is not None}
             for table, keys in self._values.items()
         }
+        if self._chains is not None:
+            out.pop("knot")
+            out["chains"] = [
+                {k: copy.deepcopy(v) for k, v in entry.items() if include_unset or v is not None}
+                for entry in self._chains
+            ]
+        return out
 
     def to_toml(self, header: str = "") -> str:
         """The run file text: every resolved key, usable again as a run file."""

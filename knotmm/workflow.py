@@ -74,6 +74,7 @@ from knotmm.io.rundir import (
     write_vmd_script,
     writing,
 )
+from knotmm.model.layout import ChainLayout
 
 __all__ = ["RESUMABLE_KEYS", "RunResult", "OutputFault", "run", "resume"]
 
@@ -203,7 +204,7 @@ def run(
         cfg = cfg.replace(template.resolved)
     if cfg["output.directory"] != str(directory):
         cfg = cfg.replace({"output.directory": str(directory)})
-    sim = Simulation.from_config(cfg, template.positions)
+    sim = Simulation.from_config(cfg, template.positions, layout=template.layout)
     if by_stiffness:
         stiffness = sim.stiffness()
         choice = auto_deterministic(stiffness)
@@ -216,21 +217,24 @@ def run(
             cfg = cfg.replace({"run.integrator": choice})
             # the engine already chosen (and warned about) when the new integrator has it
             engine = sim.engine if sim.engine in REGISTRY[choice].engines else None
-            sim = Simulation.from_config(cfg, template.positions, engine=engine)
+            sim = Simulation.from_config(cfg, template.positions, engine=engine,
+                                         layout=template.layout)
     if directory.exists() and not directory.is_dir():
         prepare_directory(directory, overwrite)  # says it is a file
     lock = RunLock(directory, "run")
     try:
         prepare_directory(directory, overwrite)
         with writing(directory):
-            write_pdb(directory / TOPOLOGY_FILE, template.positions)
-            write_vmd_script(directory, __version__)
+            write_pdb(directory / TOPOLOGY_FILE, template.positions, layout=template.layout)
+            write_vmd_script(directory, __version__, template.layout.n_chains)
         facts = {
             "version": __version__,
             "status": STATUS_RUNNING,
             "created": _dt.datetime.now().isoformat(timespec="seconds"),
             **template.facts,
             "n_beads": int(template.positions.shape[0]),
+            **({} if template.layout.is_single_ring
+               else {"layout": template.layout.to_record()}),
             "engine": sim.engine,
             "integrator": sim.integrator.describe(),
             **({"integrator_choice": choice_reason} if choice_reason else {}),
@@ -310,7 +314,8 @@ def resume(
                 f"--duration {duration:g}: the checkpoint in {str(directory)!r} is at t = "
                 f"{state['time']:g} tau_d already; give a longer duration"
             )
-        sim = Simulation.from_config(cfg, state["positions"],
+        layout = ChainLayout.from_record(facts.get("layout"), len(state["positions"]))
+        sim = Simulation.from_config(cfg, state["positions"], layout=layout,
                                      engine=_checkpoint_engine(directory, state["engine"]))
         counters = sim.loadCheckpoint(directory / CHECKPOINT_FILE)
         truncate_dcd(directory / TRAJECTORY_FILE, int(counters["frames"]))

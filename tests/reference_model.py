@@ -55,24 +55,52 @@ def _angle(u, w):
     return np.arctan2(np.linalg.norm(np.cross(u, w)), np.dot(u, w))
 
 
-def energies(x, **overrides) -> dict:
-    """Energy of each term of docs/model.md, in F0 d."""
+def chain_topology(chains):
+    """Bonds and bending triples of chains given as [(n_beads, closed), ...], one after the
+    other in bead order (a ring bonds its last bead to its first; an open chain bends at its
+    inner beads only)."""
+    bonds, triples, start = [], [], 0
+    for n, closed in chains:
+        idx = list(range(start, start + n))
+        bonds += [(idx[k], idx[k + 1]) for k in range(n - 1)]
+        if closed:
+            bonds.append((idx[-1], idx[0]))
+            triples += [(idx[k - 1], idx[k], idx[(k + 1) % n]) for k in range(n)]
+        else:
+            triples += [(idx[k - 1], idx[k], idx[k + 1]) for k in range(1, n - 1)]
+        start += n
+    return bonds, triples
+
+
+def _system_distances(x, bonds) -> np.ndarray:
+    """(n, n) distances for pairs i < j not in ``bonds``; inf elsewhere."""
+    n = len(x)
+    r = np.linalg.norm(x[None, :, :] - x[:, None, :], axis=-1)
+    mask = np.triu(np.ones((n, n), dtype=bool), k=1)
+    for i, j in bonds:
+        mask[min(i, j), max(i, j)] = False
+    return np.where(mask, r, np.inf)
+
+
+def energies(x, chains=None, **overrides) -> dict:
+    """Energy of each term of docs/model.md, in F0 d (one ring, or ``chains`` as in
+    :func:`chain_topology`)."""
     p = params(**overrides)
     x = np.asarray(x, dtype=np.float64)
     n = len(x)
+    bonds, triples = chain_topology([(n, True)] if chains is None else chains)
     e_bond = 0.0
-    for i in range(n):
-        j = (i + 1) % n
+    for i, j in bonds:
         ell = np.linalg.norm(x[j] - x[i])
         e_bond += 0.5 * p["bond_stiffness"] * (ell - p["bond_length"]) ** 2
     e_bend = 0.0
-    for i in range(n):
-        u = x[(i - 1) % n] - x[i]
-        w = x[(i + 1) % n] - x[i]
+    for a, i, c in triples:
+        u = x[a] - x[i]
+        w = x[c] - x[i]
         e_bend += 0.5 * p["bending_stiffness"] * (_angle(u, w) - np.pi) ** 2
     s, eps = p["lj_sigma"], p["lj_epsilon"]
     rc = 2.0 ** (1.0 / 6.0) * s
-    r = _nonbonded_distances(x)
+    r = _nonbonded_distances(x) if chains is None else _system_distances(x, bonds)
     inside = r < rc
     e_steric = float(np.sum(eps * ((s / r[inside]) ** 12 - (s / r[inside]) ** 6)))
     e_gravity = p["gravity"] * float(np.sum(x[:, 2]))
@@ -81,22 +109,22 @@ def energies(x, **overrides) -> dict:
     return out
 
 
-def forces(x, **overrides) -> dict:
-    """Force of each term (minus the analytic gradient of its energy), shape (n, 3), in F0."""
+def forces(x, chains=None, **overrides) -> dict:
+    """Force of each term (minus the analytic gradient of its energy), shape (n, 3), in F0
+    (one ring, or ``chains`` as in :func:`chain_topology`)."""
     p = params(**overrides)
     x = np.asarray(x, dtype=np.float64)
     n = len(x)
+    bonds, triples = chain_topology([(n, True)] if chains is None else chains)
     f_bond = np.zeros_like(x)
-    for i in range(n):
-        j = (i + 1) % n
+    for i, j in bonds:
         rij = x[j] - x[i]
         ell = np.linalg.norm(rij)
         g = p["bond_stiffness"] * (ell - p["bond_length"]) * rij / ell  # dE/dx_j
         f_bond[j] -= g
         f_bond[i] += g
     f_bend = np.zeros_like(x)
-    for i in range(n):
-        a, c = (i - 1) % n, (i + 1) % n
+    for a, i, c in triples:
         u = x[a] - x[i]
         w = x[c] - x[i]
         lu, lw = np.linalg.norm(u), np.linalg.norm(w)
@@ -121,7 +149,7 @@ def forces(x, **overrides) -> dict:
     s, eps = p["lj_sigma"], p["lj_epsilon"]
     rc = 2.0 ** (1.0 / 6.0) * s
     f_steric = np.zeros_like(x)
-    r = _nonbonded_distances(x)
+    r = _nonbonded_distances(x) if chains is None else _system_distances(x, bonds)
     for i, j in zip(*np.nonzero(r < rc), strict=True):
         rij = x[j] - x[i]
         rr = np.linalg.norm(rij)

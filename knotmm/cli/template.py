@@ -233,6 +233,74 @@ def execute(args) -> int:
     from knotmm.shapes.builder import build_template  # noqa: PLC0415
 
     tpl = build_template(cfg, allow_open_chain=True)  # --out writes it closed
+    if tpl.parts or not tpl.layout.is_single_ring:
+        rows = _system_rows(tpl, cfg)
+    else:
+        rows = _knot_rows(tpl, cfg, args)
+    if out_path is not None:
+        from knotmm.io.pdb import write_pdb  # noqa: PLC0415
+
+        try:
+            write_pdb(out_path, tpl.positions, layout=tpl.layout)
+        except OSError as exc:
+            raise TemplateError(f"--out={args.out!r} cannot be written: {exc}") from None
+        layout = tpl.layout
+        bonds = len(layout.bonds())
+        what = ("bonds incl. the ring closure" if layout.is_single_ring
+                else f"bonds; {layout.n_chains} PDB chain{'s' if layout.n_chains > 1 else ''}")
+        rows.append(("wrote", f"{out_path} ({tpl.n_beads} beads, {bonds} {what}, Angstrom)"))
+    width = max(len(k) for k, _ in rows)
+    for key, value in rows:
+        print(f"{key:<{width}}  {value}", file=out)
+    return 0
+
+
+def _bond_row(check, cfg) -> tuple[str, str]:
+    return (
+        "bonds",
+        f"{check.bond_min:.4f} - {check.bond_max:.4f} d (mean {check.bond_mean:.4f}; "
+        f"model.bond_length {cfg['model.bond_length']:g}; largest deviation "
+        f"{100 * check.bond_error:.3f}%)",
+    )
+
+
+def _system_rows(tpl, cfg) -> list[tuple[str, str]]:
+    """The report of a link, an open filament or several chains: one row per chain, the
+    linking numbers, the closest approach of two chains."""
+    import numpy as np  # noqa: PLC0415
+
+    from knotmm.shapes.assembly import closest_between  # noqa: PLC0415
+
+    layout = tpl.layout
+    rows = [("system", tpl.description), ("beads", f"{tpl.n_beads} in {layout.n_chains} "
+                                                  f"chain{'s' if layout.n_chains > 1 else ''}")]
+    slices = layout.slices()
+    for k, (cid, sl, ring) in enumerate(zip(layout.ids, slices, layout.closed, strict=True)):
+        x = tpl.positions[sl]
+        part = tpl.parts[k] if tpl.parts else None
+        bonds = np.linalg.norm(np.diff(np.vstack([x, x[:1]]) if ring else x, axis=0), axis=1)
+        kt = part.knot_type if part is not None else None
+        text = (f"{x.shape[0]} beads, {'closed' if ring else 'open'}; bonds "
+                f"{bonds.min():.4f} - {bonds.max():.4f} d")
+        if ring:
+            text += "; knot type " + (kt if kt else "not checked")
+        rows.append((f"chain {cid}", text))
+    numbers = tpl.chain_facts.get("linking_numbers")
+    if numbers:
+        rows.append(("linking", ", ".join(f"{pair}: {v:+d}" if v else f"{pair}: 0"
+                                          for pair, v in numbers.items())
+                     + " (Gauss integral)"))
+    if len(slices) > 1:
+        best = min((closest_between(tpl.positions[a], tpl.positions[b])[0], i, j)
+                   for i, a in enumerate(slices) for j, b in enumerate(slices) if i < j)
+        rows.append(("closest", f"chains {layout.ids[best[1]]} and {layout.ids[best[2]]}, "
+                                f"{best[0]:.4f} d apart"))
+    rows.extend(("note", note) for note in tpl.notes if not note.startswith("knot type not"))
+    return rows
+
+
+def _knot_rows(tpl, cfg, args) -> list[tuple[str, str]]:
+    """The report of one closed knot."""
     check = tpl.check
     n = tpl.n_beads
     rows = [("knot", tpl.description), ("beads", str(n))]
@@ -244,14 +312,7 @@ def execute(args) -> int:
                 f"{cfg['knot.minor_radius']:g} d",
             )
         )
-    rows.append(
-        (
-            "bonds",
-            f"{check.bond_min:.4f} - {check.bond_max:.4f} d (mean {check.bond_mean:.4f}; "
-            f"model.bond_length {cfg['model.bond_length']:g}; largest deviation "
-            f"{100 * check.bond_error:.3f}%)",
-        )
-    )
+    rows.append(_bond_row(check, cfg))
     i, j = check.closest_pair
     rows.append(
         (
@@ -271,16 +332,4 @@ def execute(args) -> int:
         if note.startswith("knot.beads=") and args.beads is None:
             continue  # the file's bead count, not one the user asked for
         rows.append(("note", note))
-    if out_path is not None:
-        from knotmm.io.pdb import write_pdb  # noqa: PLC0415
-
-        path = out_path
-        try:
-            write_pdb(path, tpl.positions)
-        except OSError as exc:
-            raise TemplateError(f"--out={args.out!r} cannot be written: {exc}") from None
-        rows.append(("wrote", f"{path} ({n} beads, {n} bonds incl. the ring closure, Angstrom)"))
-    width = max(len(k) for k, _ in rows)
-    for key, value in rows:
-        print(f"{key:<{width}}  {value}", file=out)
-    return 0
+    return rows

@@ -10,12 +10,16 @@ template of :func:`knotmm.shapes.builder.build_template` (``identify="later"``);
 
 from __future__ import annotations
 
+import time
+
 from knotmm.engine.schedule import TimeScheduled
 from knotmm.errors import ConfigError
 from knotmm.knots.identify import worker_ready
 
 __all__ = [
+    "FINISH_PATIENCE_S",
     "TemplateKnotCheck",
+    "checks_not_made",
     "check_stop_on_change",
     "finish_checks",
     "knot_watch",
@@ -78,6 +82,10 @@ def knot_watch(sim, cfg, facts, counters, resuming):
 
     if not (cfg["run.topology_check_interval"] > 0 and topoly_available()):
         return None
+    if not sim.layout.is_single_ring:  # the watch names the knot of one ring
+        facts["knot_type_watch"] = ("not made during the run: the knot-type watch follows one "
+                                    "closed chain; each chain's type at the start is recorded")
+        return None
     expected = facts.get("knot_type") if resuming else None
     watch = KnotTypeWatch(
         cfg["run.topology_check_interval"],
@@ -105,7 +113,23 @@ def record_checks(facts: dict, watch) -> None:
     facts["knot_type_changes"] = changes
 
 
-def finish_checks(judge: TemplateKnotCheck, watch, wait: bool = False) -> None:
+#: At the end of a run with checks still under way, how long to wait for the knot worker to
+#: finish starting (topoly's import: about 2 s) before recording them as not made, in s.
+FINISH_PATIENCE_S = 5.0
+
+
+def _under_way(judge: TemplateKnotCheck, watch) -> bool:
+    """Whether a check still waits for the knot worker (the template's or the watch's)."""
+    template = judge.template
+    if template is not None and template.knot_type_pending:
+        return True
+    # the watch's queue of identifications submitted and not judged yet
+    return watch is not None and bool(getattr(watch, "_pending", None)
+                                      or getattr(watch, "_start", None) is not None)
+
+
+def finish_checks(judge: TemplateKnotCheck, watch, wait: bool = False,
+                  patience: float = FINISH_PATIENCE_S) -> None:
     """At the end of a run, judge the checks still under way beside it.
 
     Parameters
@@ -114,10 +138,27 @@ def finish_checks(judge: TemplateKnotCheck, watch, wait: bool = False) -> None:
     watch : KnotTypeWatch or None
     wait : bool
         Wait for every answer even while the worker is still starting (a sweep, which
-        identifies knot types in its analysis next anyway). Otherwise answers are waited for
-        only once the worker is up: a short run does not wait for topoly's import; what is
-        left is recorded as not checked.
+        identifies knot types in its analysis next anyway).
+    patience : float
+        Otherwise, seconds to wait for a worker still starting (topoly's import, about 2 s):
+        once it is up every answer is waited for (an identification takes a fraction of a
+        second); if it is not up by then, what is left is recorded as not made
+        (``knot_type_checks_dropped``, a note for the template), and ``knotmm run`` says so
+        on its summary line (:func:`checks_not_made`).
     """
+    if not wait and _under_way(judge, watch):
+        deadline = time.monotonic() + patience
+        while not worker_ready() and time.monotonic() < deadline:
+            time.sleep(0.05)
     judge.settle(wait=wait or worker_ready(), end=True)
     if watch is not None:
         watch.finish(wait=wait)
+
+
+def checks_not_made(facts: dict) -> tuple[int, bool]:
+    """From run.toml's ``[knotmm]`` facts: the knot-type checks a run recorded as not made,
+    and whether the template's knot type was left unchecked."""
+    dropped = int(facts.get("knot_type_checks_dropped", 0) or 0)
+    template = facts.get("template_knot_type") is None and any(
+        "template knot type not checked" in str(n) for n in facts.get("notes", []) or [])
+    return dropped, template

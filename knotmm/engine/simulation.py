@@ -48,8 +48,9 @@ from knotmm.engine.interrupt import raise_if_requested
 from knotmm.engine.openmm_state import state_array
 from knotmm.engine.schedule import landing_slack
 from knotmm.errors import ConfigError, SimulationFault, TrajectoryFileError
+from knotmm.model.layout import ChainLayout
 from knotmm.model.system import FORCE_GROUPS, ChainModel, chain_system, site_positions
-from knotmm.model.topology import bead_topology, ring_bonds
+from knotmm.model.topology import bead_topology
 
 __all__ = ["Simulation", "select_platform"]
 
@@ -111,6 +112,9 @@ class Simulation:
         :class:`knotmm.plugin.RPYIntegrator` with its settings, which takes every step up to
         the next report time in C++ (:mod:`knotmm.engine.plugin_engine`); resolve
         ``run.engine`` with :func:`knotmm.engine.engines.resolve_engine`.
+    layout : ChainLayout, optional
+        The chains of the system (:class:`knotmm.model.layout.ChainLayout`); default: one
+        ring of all the beads. The mobility couples every bead of every chain.
 
     Attributes
     ----------
@@ -146,12 +150,14 @@ class Simulation:
         max_bond_length: float = 3.0,
         mobility_threads: int = 1,
         engine: str = PYTHON,
+        layout: ChainLayout | None = None,
     ):
         pos = np.array(positions, dtype=np.float64)
         self.mobility_threads = int(mobility_threads)
         self.model = ChainModel() if model is None else model
-        self.system = chain_system(pos, self.model)
-        self.topology = bead_topology(pos.shape[0])
+        self.system = chain_system(pos, self.model, layout)
+        self.layout = ChainLayout.ring(pos.shape[0]) if layout is None else layout
+        self.topology = bead_topology(self.layout)
         self.integrator = RK23(0.01) if integrator is None else integrator
         plat, props = select_platform(platform, pos.shape[0], threads)
         self._engine = make_engine(engine, self.integrator, threads=self.mobility_threads,
@@ -166,7 +172,7 @@ class Simulation:
         self.platform_name = plat.getName()
         self.positions = pos
         self.n_beads = pos.shape[0]
-        self.bonds = ring_bonds(self.n_beads)
+        self.bonds = self.layout.bonds()
         self.max_bond_length = float(max_bond_length)
         self.time = 0.0
         self.reporters: list = []
@@ -207,7 +213,9 @@ class Simulation:
         return self._engine.timestep
 
     @classmethod
-    def from_config(cls, cfg, positions=None, engine: str | None = None) -> Simulation:
+    def from_config(
+        cls, cfg, positions=None, engine: str | None = None, layout: ChainLayout | None = None
+    ) -> Simulation:
         """The Simulation a run configuration describes.
 
         Parameters
@@ -221,6 +229,9 @@ class Simulation:
             The engine to use; default: ``run.engine`` resolved by
             :func:`knotmm.engine.engines.resolve_engine` (``"plugin"`` without the plugin
             warns once and gives the Python engine).
+        layout : ChainLayout, optional
+            The chains of ``positions``; default: those of the template (one ring for a
+            knot).
 
         Raises
         ------
@@ -233,7 +244,8 @@ class Simulation:
         if positions is None:
             from knotmm.shapes.builder import build_template
 
-            positions = build_template(cfg).positions
+            template = build_template(cfg)
+            positions, layout = template.positions, template.layout
         if engine is None:
             platform, _ = select_platform(cfg["run.platform"], np.shape(positions)[0],
                                           cfg["run.threads"])
@@ -248,6 +260,7 @@ class Simulation:
             max_bond_length=cfg["run.max_bond_length"],
             mobility_threads=cfg["run.mobility_threads"],
             engine=engine,
+            layout=layout,
         )
 
     # -- checkpoints (OpenMM's names) -------------------------------------------------------
@@ -311,7 +324,7 @@ class Simulation:
         """Total force on every bead, shape (n_beads, 3), in F0 (from the OpenMM Context)."""
         shifted = positions - positions.mean(axis=0)
         if self.model.segment_repulsion:
-            shifted = site_positions(shifted, self.model)
+            shifted = site_positions(shifted, self.model, self.layout)
         self.context.setPositions(shifted)
         self._context_current = False
         state = self.context.getState(getForces=True)
@@ -358,7 +371,7 @@ class Simulation:
         (shape (n_beads, 3), in d; virtual sites placed from them); the Context then no
         longer holds the run's positions (the next step or report puts them back).
         """
-        self.context.setPositions(site_positions(shifted, self.model))
+        self.context.setPositions(site_positions(shifted, self.model, self.layout))
         self._context_current = False
         out = {}
         for name, group in FORCE_GROUPS.items():
@@ -367,7 +380,8 @@ class Simulation:
         return out
 
     def bond_lengths(self, positions: np.ndarray | None = None) -> np.ndarray:
-        """Length of every bond, shape (n_beads,), in d (bond i joins beads i and i+1)."""
+        """Length of every bond, shape (n_bonds,), in d (bond ``k`` joins the beads of
+        ``layout.bonds()[k]``: beads ``k`` and ``k + 1`` of a ring)."""
         pos = self.positions if positions is None else positions
         return np.linalg.norm(pos[self.bonds[:, 1]] - pos[self.bonds[:, 0]], axis=1)
 
@@ -400,7 +414,7 @@ class Simulation:
         worst = int(np.argmax(lengths))
         if lengths[worst] > self.max_bond_length:
             raise SimulationFault(
-                f"bond {worst} (beads {worst}-{(worst + 1) % self.n_beads}) is "
+                f"bond {worst} (beads {self.bonds[worst, 0]}-{self.bonds[worst, 1]}) is "
                 f"{lengths[worst]:.4g} d long at {where}, past run.max_bond_length = "
                 f"{self.max_bond_length:g}. Hint: the step is too large for the forces "
                 f"({self._step_hint()}), or the template overlaps itself"

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from knotmm.model.layout import ChainLayout
 from knotmm.model.topology import bead_topology
 from knotmm.units import ANGSTROM_PER_D
 
@@ -35,15 +36,15 @@ logger = logging.getLogger(__name__)
 _NM_PER_ANGSTROM = 0.1
 
 
-def mdtraj_topology(n_beads: int, closed: bool = True):
-    """The bead Topology (:func:`knotmm.model.topology.bead_topology`, same arguments) as an
-    mdtraj Topology."""
+def mdtraj_topology(n_beads: int | ChainLayout, closed: bool = True):
+    """The bead Topology (:func:`knotmm.model.topology.bead_topology`, same arguments: a bead
+    count or a :class:`~knotmm.model.layout.ChainLayout`) as an mdtraj Topology."""
     import mdtraj  # noqa: PLC0415 - heavy import kept out of module import
 
     return mdtraj.Topology.from_openmm(bead_topology(n_beads, closed=closed))
 
 
-def write_pdb(path, positions, closed: bool = True) -> None:
+def write_pdb(path, positions, closed: bool = True, layout: ChainLayout | None = None) -> None:
     """Write bead positions as a PDB file with CONECT records for every bond.
 
     Parameters
@@ -54,7 +55,10 @@ def write_pdb(path, positions, closed: bool = True) -> None:
         Bead coordinates in model units; written in Angstrom (x 10). Several frames are
         written as MODEL records.
     closed : bool, optional
-        If true, the ring-closing bond ``n_beads - 1 -> 0`` is included.
+        If true, the ring-closing bond ``n_beads - 1 -> 0`` is included (one chain).
+    layout : ChainLayout, optional
+        The chains, one PDB chain each (``A``, ``B``, ...), with their bonds; overrides
+        ``closed``.
 
     Raises
     ------
@@ -76,20 +80,30 @@ def write_pdb(path, positions, closed: bool = True) -> None:
     if not np.all(np.isfinite(x)):
         raise ValueError("positions contains non-finite coordinates")
     n_beads = x.shape[1]
-    top = mdtraj_topology(n_beads, closed=closed)
+    layout = ChainLayout((n_beads,), (bool(closed),)) if layout is None else layout
+    if layout.n_beads != n_beads:
+        raise ValueError(
+            f"positions has {n_beads} beads, the chains ({layout.describe()}) {layout.n_beads}"
+        )
+    top = mdtraj_topology(layout)
     xyz_nm = x * ANGSTROM_PER_D * _NM_PER_ANGSTROM
     traj = mdtraj.Trajectory(xyz_nm, top)  # no unit cell
     path = Path(path)
     traj.save_pdb(os.fspath(path))
-    n_bonds = n_beads if closed else n_beads - 1
-    _check_conect(path, n_beads, n_bonds, closed)
+    _check_conect(path, layout)
     logger.debug("wrote %s: %d frames of %d beads", path, x.shape[0], n_beads)
 
 
-def _check_conect(path: Path, n_beads: int, n_bonds: int, closed: bool) -> None:
+def _check_conect(path: Path, layout: ChainLayout) -> None:
     """Make sure the written file carries every bond; append CONECT lines if not."""
     bonds = set()
     lines = path.read_text().splitlines()
+    atom_serials = []  # serial of each bead (TER records between chains take serials too)
+    for line in lines:
+        if line.startswith(("ATOM", "HETATM")):
+            atom_serials.append(int(line[6:11]))
+        if line.startswith("ENDMDL"):
+            break
     for line in lines:
         if line.startswith("CONECT"):
             fields = [line[i : i + 5] for i in range(6, len(line), 5)]
@@ -98,9 +112,9 @@ def _check_conect(path: Path, n_beads: int, n_bonds: int, closed: bool) -> None:
                 a = serials[0]
                 for b in serials[1:]:
                     bonds.add((min(a, b), max(a, b)))
-    wanted = {(i + 1, i + 2) for i in range(n_beads - 1)}
-    if closed:
-        wanted.add((1, n_beads))
+    wanted = {
+        tuple(sorted((atom_serials[i], atom_serials[j]))) for i, j in layout.bonds()
+    }
     missing = sorted(wanted - bonds)
     if not missing:
         return

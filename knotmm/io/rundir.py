@@ -174,8 +174,11 @@ def _tcl_word(text: str) -> str:
     return '"' + escaped.replace("\n", "\\n").replace("\r", "\\r").replace("\t", "\\t") + '"'
 
 
-def vmd_script(directory, version: str) -> str:
+def vmd_script(directory, version: str, n_chains: int = 1) -> str:
     """The text of ``view.vmd`` for the run directory ``directory``.
+
+    One chain is coloured along its beads (VMD's ``ResID``), several chains one colour each
+    (``Chain``).
 
     The script finds its files relative to itself where VMD says where it is (``source``)
     and else in ``directory`` as written here (absolute) or the current directory
@@ -183,6 +186,8 @@ def vmd_script(directory, version: str) -> str:
     directory that was moved when it is opened there.
     """
     text = VMD_SCRIPT.replace("@VERSION@", version)
+    if n_chains > 1:
+        text = text.replace("mol color ResID", "mol color Chain")
     text = text.replace("@TOPOLOGY@", TOPOLOGY_FILE).replace("@TRAJECTORY@", TRAJECTORY_FILE)
     return text.replace("@RUN_DIR@", _tcl_word(os.path.abspath(directory)))
 
@@ -285,11 +290,11 @@ def run_status(directory) -> str | None:
         return "unreadable"
 
 
-def write_vmd_script(directory, version: str) -> None:
+def write_vmd_script(directory, version: str, n_chains: int = 1) -> None:
     """Write ``view.vmd`` (atomically): :func:`vmd_script`."""
     from knotmm.io.atomic import write_text_atomic
 
-    write_text_atomic(Path(directory) / VMD_FILE, vmd_script(directory, version))
+    write_text_atomic(Path(directory) / VMD_FILE, vmd_script(directory, version, n_chains))
 
 
 # -- preparing and owning a directory -------------------------------------------------------

@@ -1,7 +1,8 @@
 """The forces of the bead-spring model, one small function per force.
 
-Each function takes the number of beads and a :class:`knotmm.model.parameters.ChainModel` and
-returns one named ``openmm.Force`` (``force.getName()``), in model units read by OpenMM as
+Each function takes the system's chains (a :class:`knotmm.model.layout.ChainLayout`, or a
+bead count for one ring) and a :class:`knotmm.model.parameters.ChainModel` and returns one
+named ``openmm.Force`` (``force.getName()``), in model units read by OpenMM as
 kJ/mol and nm (``docs/model.md``):
 
 ========== ============================================ =========================
@@ -17,9 +18,10 @@ with ``rc = 2**(1/6) sigma``. The steric term is the published form (no factor 4
 Lennard-Jones term with ``epsilon_openmm = eps / 4``, truncated at ``rc`` without a
 switching function, so its force vanishes exactly at the cutoff (the energy jumps by
 ``eps/4``, as in the published model). It acts between every pair of beads that is not
-bonded; bonded pairs are exceptions with zero interaction. All charges are zero. With
-``segment_repulsion`` the steric force also holds one site per bond midpoint (the System's
-virtual sites, :func:`knotmm.model.system.chain_system`). To add a force, see
+bonded (beads of different chains always interact); bonded pairs are exceptions with zero
+interaction. All charges are zero. With ``segment_repulsion`` the steric force also holds one
+site per bond midpoint (the System's virtual sites, :func:`knotmm.model.system.chain_system`),
+in the order of :meth:`ChainLayout.bonds`. To add a force, see
 ``docs/architecture.md``.
 """
 
@@ -28,8 +30,8 @@ from __future__ import annotations
 import numpy as np
 import openmm
 
+from knotmm.model.layout import ChainLayout
 from knotmm.model.parameters import ChainModel
-from knotmm.model.topology import ring_bonds
 
 __all__ = ["FORCE_GROUPS", "FORCE_MAKERS", "bend_force", "bond_force", "gravity_force",
            "steric_force"]
@@ -38,17 +40,18 @@ __all__ = ["FORCE_GROUPS", "FORCE_MAKERS", "bend_force", "bond_force", "gravity_
 FORCE_GROUPS = {"bond": 0, "bend": 1, "steric": 2, "gravity": 3}
 
 
-def bond_force(n_beads: int, model: ChainModel) -> openmm.HarmonicBondForce:
-    """Harmonic bonds ``B/2 (l - l0)^2`` around the ring (OpenMM's k is ``B``)."""
+def bond_force(layout: ChainLayout | int, model: ChainModel) -> openmm.HarmonicBondForce:
+    """Harmonic bonds ``B/2 (l - l0)^2`` along every chain (OpenMM's k is ``B``)."""
     force = openmm.HarmonicBondForce()
-    for i, j in ring_bonds(n_beads):
+    for i, j in ChainLayout.of(layout).bonds():
         force.addBond(int(i), int(j), model.bond_length, model.bond_stiffness)
     force.setName("bond")
     return force
 
 
-def bend_force(n_beads: int, model: ChainModel) -> openmm.CustomAngleForce:
-    """Harmonic bending ``A/2 (phi - pi)^2`` at every bead of the ring.
+def bend_force(layout: ChainLayout | int, model: ChainModel) -> openmm.CustomAngleForce:
+    """Harmonic bending ``A/2 (phi - pi)^2`` at every bead of a ring, at the inner beads of an
+    open chain.
 
     A ``CustomAngleForce`` with the global parameter ``bending_stiffness`` (= A): on the CPU
     platform it costs about half of what ``HarmonicAngleForce`` costs for the same angles
@@ -56,45 +59,53 @@ def bend_force(n_beads: int, model: ChainModel) -> openmm.CustomAngleForce:
     """
     force = openmm.CustomAngleForce(f"0.5*bending_stiffness*(theta - {np.pi!r})^2")
     force.addGlobalParameter("bending_stiffness", model.bending_stiffness)
-    for i in range(n_beads):
-        force.addAngle((i - 1) % n_beads, i, (i + 1) % n_beads, [])
+    for h, i, j in ChainLayout.of(layout).angles():
+        force.addAngle(int(h), int(i), int(j), [])
     force.setName("bend")
     return force
 
 
-def steric_force(n_beads: int, model: ChainModel) -> openmm.NonbondedForce:
+def steric_force(layout: ChainLayout | int, model: ChainModel) -> openmm.NonbondedForce:
     """Truncated Lennard-Jones ``eps((sigma/r)^12 - (sigma/r)^6)`` for ``r < 2^(1/6) sigma``.
 
-    Every non-bonded pair interacts (next-nearest neighbours included); bonded pairs are
-    zeroed exceptions.
+    Every non-bonded pair interacts (next-nearest neighbours included, beads of different
+    chains always); bonded pairs are zeroed exceptions. A bond-midpoint site does not see the
+    beads of its bond and of the bonds next to it along its chain, nor their sites.
     """
+    layout = ChainLayout.of(layout)
+    n_beads = layout.n_beads
+    bonds = layout.bonds()
     force = openmm.NonbondedForce()
     force.setNonbondedMethod(openmm.NonbondedForce.CutoffNonPeriodic)
     force.setCutoffDistance(model.steric_range)
     force.setUseSwitchingFunction(False)
     force.setUseDispersionCorrection(False)
     force.setReactionFieldDielectric(1.0)
-    n_sites = 2 * n_beads if model.segment_repulsion else n_beads
+    n_sites = n_beads + len(bonds) if model.segment_repulsion else n_beads
     for _ in range(n_sites):
         force.addParticle(0.0, model.lj_sigma, model.lj_epsilon / 4.0)
-    for i, j in ring_bonds(n_beads):
+    for i, j in bonds:
         force.addException(int(i), int(j), 0.0, model.lj_sigma, 0.0)
     if model.segment_repulsion:
-        # midpoint site of bond k is particle n + k; it sits between beads k and k+1
-        for k in range(n_beads):
+        # the midpoint site of bond k is particle n_beads + k, between that bond's beads
+        for k, (before, after) in enumerate(layout.adjacent_bonds()):
             site = n_beads + k
-            for bead in (k - 1, k, k + 1, k + 2):
-                force.addException(site, bead % n_beads, 0.0, model.lj_sigma, 0.0)
-            force.addException(site, n_beads + (k + 1) % n_beads, 0.0, model.lj_sigma, 0.0)
+            near = [] if before is None else [int(bonds[before][0])]
+            near += [int(bonds[k][0]), int(bonds[k][1])]
+            near += [] if after is None else [int(bonds[after][1])]
+            for bead in dict.fromkeys(near):
+                force.addException(site, bead, 0.0, model.lj_sigma, 0.0)
+            if after is not None and after != k:
+                force.addException(site, n_beads + after, 0.0, model.lj_sigma, 0.0)
     force.setName("steric")
     return force
 
 
-def gravity_force(n_beads: int, model: ChainModel) -> openmm.CustomExternalForce:
+def gravity_force(layout: ChainLayout | int, model: ChainModel) -> openmm.CustomExternalForce:
     """Constant force ``g`` along ``-z`` on every bead (energy ``g z``)."""
     force = openmm.CustomExternalForce("gravity_force*z")
     force.addGlobalParameter("gravity_force", model.gravity)
-    for i in range(n_beads):
+    for i in range(ChainLayout.of(layout).n_beads):
         force.addParticle(i, [])
     force.setName("gravity")
     return force

@@ -1,7 +1,8 @@
-"""The OpenMM ``System`` of a closed bead-spring chain.
+"""The OpenMM ``System`` of bead-spring chains.
 
-The chain of ``N`` beads is a ring: bead ``i`` is bonded to ``i + 1`` and bead ``N - 1`` to
-bead ``0`` (:mod:`knotmm.model.topology`). :func:`chain_system` makes a System of unit-mass
+The study's chain of ``N`` beads is a ring: bead ``i`` is bonded to ``i + 1`` and bead
+``N - 1`` to bead ``0``; a system of several chains, or of open ones, is described by a
+:class:`knotmm.model.layout.ChainLayout`. :func:`chain_system` makes a System of unit-mass
 particles holding the four named forces of :mod:`knotmm.model.forces`, each in its own force
 group (:data:`FORCE_GROUPS`); energies in F0 d, lengths in d, read by OpenMM as kJ/mol and
 nm (``docs/model.md``). This layer knows nothing of run files: the config-aware
@@ -16,24 +17,32 @@ import openmm
 
 from knotmm.errors import ConfigError
 from knotmm.model.forces import FORCE_GROUPS, FORCE_MAKERS
+from knotmm.model.layout import ChainLayout
 from knotmm.model.parameters import ChainModel
 
 __all__ = ["FORCE_GROUPS", "ChainModel", "chain_system", "site_positions"]
 
 
-def _check_positions(positions) -> np.ndarray:
+def _check_positions(positions, layout: ChainLayout | None) -> np.ndarray:
     pos = np.asarray(positions, dtype=np.float64)
     if pos.ndim != 2 or pos.shape[1] != 3:
         raise ConfigError(f"positions: expected shape (n_beads, 3), got {pos.shape}")
-    if pos.shape[0] < 4:
+    if layout is None and pos.shape[0] < 4:
         raise ConfigError(f"positions: a ring needs at least 4 beads, got {pos.shape[0]}")
+    if layout is not None and layout.n_beads != pos.shape[0]:
+        raise ConfigError(
+            f"positions: {pos.shape[0]} beads, but the chains ({layout.describe()}) hold "
+            f"{layout.n_beads}"
+        )
     if not np.all(np.isfinite(pos)):
         raise ConfigError("positions: contain NaN or infinite values")
     return pos
 
 
-def chain_system(positions, model: ChainModel | None = None) -> openmm.System:
-    """The OpenMM System of a closed chain.
+def chain_system(
+    positions, model: ChainModel | None = None, layout: ChainLayout | None = None
+) -> openmm.System:
+    """The OpenMM System of a closed chain, or of the chains of ``layout``.
 
     Parameters
     ----------
@@ -41,43 +50,52 @@ def chain_system(positions, model: ChainModel | None = None) -> openmm.System:
         Only the number of beads is taken from it (and it is checked to be finite).
     model : ChainModel, optional
         Model parameters; default: the study's.
+    layout : ChainLayout, optional
+        The chains; default: one ring of all the beads.
 
     Returns
     -------
     openmm.System
         Unit-mass particles and the four named forces, each in its group of
-        :data:`FORCE_GROUPS`. With ``model.segment_repulsion`` the System has ``n_beads``
-        more particles, the bond midpoints (massless virtual sites), after the beads; see
-        :func:`site_positions`.
+        :data:`FORCE_GROUPS`. With ``model.segment_repulsion`` the System has one more
+        particle per bond, the bond midpoints (massless virtual sites, in the order of
+        :meth:`ChainLayout.bonds`), after the beads; see :func:`site_positions`.
     """
-    pos = _check_positions(positions)
+    pos = _check_positions(positions, layout)
     model = ChainModel() if model is None else model
-    n = pos.shape[0]
+    layout = ChainLayout.ring(pos.shape[0]) if layout is None else layout
     system = openmm.System()
-    for _ in range(n):
+    for _ in range(layout.n_beads):
         system.addParticle(1.0)
     if model.segment_repulsion:
-        for k in range(n):
+        for i, j in layout.bonds():
             site = system.addParticle(0.0)
-            system.setVirtualSite(site, openmm.TwoParticleAverageSite(k, (k + 1) % n, 0.5, 0.5))
+            system.setVirtualSite(site, openmm.TwoParticleAverageSite(int(i), int(j), 0.5, 0.5))
     for name, group in FORCE_GROUPS.items():
-        force = FORCE_MAKERS[name](n, model)
+        force = FORCE_MAKERS[name](layout, model)
         force.setForceGroup(group)
         system.addForce(force)
     return system
 
 
-def site_positions(positions: np.ndarray, model: ChainModel) -> np.ndarray:
+def site_positions(
+    positions: np.ndarray, model: ChainModel, layout: ChainLayout | None = None
+) -> np.ndarray:
     """Positions of every particle of the System: the beads, then any bond midpoints.
 
     Parameters
     ----------
     positions : ndarray, shape (n_beads, 3), in d
+    layout : ChainLayout, optional
+        The chains; default: one ring.
 
     Returns
     -------
-    ndarray, shape (n_beads, 3) or (2 n_beads, 3)
+    ndarray, shape (n_beads, 3) or (n_beads + n_bonds, 3)
     """
     if not model.segment_repulsion:
         return positions
-    return np.concatenate([positions, 0.5 * (positions + np.roll(positions, -1, axis=0))])
+    if layout is None:
+        return np.concatenate([positions, 0.5 * (positions + np.roll(positions, -1, axis=0))])
+    bonds = layout.bonds()
+    return np.concatenate([positions, 0.5 * (positions[bonds[:, 0]] + positions[bonds[:, 1]])])

@@ -1,18 +1,21 @@
-"""The bead Topology: the one description of a knotmm chain's atoms and bonds.
+"""The bead Topology: the one description of a knotmm system's atoms and bonds.
 
-A knotmm chain is one chain ``A`` of beads, one residue ``BEA`` per bead (numbered from 1),
-one atom ``B`` per residue (element carbon, only so that viewers draw it), bead ``i`` bonded
-to bead ``i + 1`` and the last bead bonded to the first. The residue name is non-standard on
-purpose: mdtraj writes ``CONECT`` records only for non-standard residues, and without them
-VMD draws no chain. The engine, the PDB writer (:mod:`knotmm.io.pdb`, through
-``mdtraj.Topology.from_openmm``) and the synthetic run directories all use
-:func:`bead_topology`; see ``docs/architecture.md``.
+A knotmm chain is one PDB chain of beads (``A``, then ``B``, ... for the further chains of a
+:class:`knotmm.model.layout.ChainLayout`), one residue ``BEA`` per bead (numbered from 1 in
+each chain), one atom ``B`` per residue (element carbon, only so that viewers draw it), bead
+``i`` bonded to bead ``i + 1`` and, in a ring, the last bead bonded to the first. The
+residue name is non-standard on purpose: mdtraj writes ``CONECT`` records only for
+non-standard residues, and without them VMD draws no chain. The engine, the PDB writer
+(:mod:`knotmm.io.pdb`, through ``mdtraj.Topology.from_openmm``) and the synthetic run
+directories all use :func:`bead_topology`; see ``docs/architecture.md``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import openmm.app
+
+from knotmm.model.layout import ChainLayout
 
 __all__ = ["BEAD_ATOM", "BEAD_RESIDUE", "bead_topology", "ring_bonds"]
 
@@ -33,27 +36,31 @@ def ring_bonds(n_beads: int) -> np.ndarray:
     return np.stack([i, (i + 1) % n_beads], axis=1)
 
 
-def bead_topology(n_beads: int, closed: bool = True) -> openmm.app.Topology:
-    """The OpenMM Topology of a bead chain.
+def bead_topology(n_beads: int | ChainLayout, closed: bool = True) -> openmm.app.Topology:
+    """The OpenMM Topology of a bead chain, or of the chains of a layout.
 
     Parameters
     ----------
-    n_beads : int
-        Number of beads, at least 3 for a closed chain (2 for an open one).
+    n_beads : int or ChainLayout
+        Number of beads, at least 3 for a closed chain (2 for an open one); or the chains.
     closed : bool, optional
-        If true (knotmm's chains), bead ``n_beads - 1`` is bonded back to bead 0.
+        If true (knotmm's chains), bead ``n_beads - 1`` is bonded back to bead 0 (ignored for
+        a layout, which says it per chain).
 
     Returns
     -------
     openmm.app.Topology
-        One chain ``A``, ``n_beads`` residues ``BEA`` numbered from 1, one atom ``B``
-        (carbon) each, bonds ``i -> i + 1`` and, if ``closed``, ``n_beads - 1 -> 0``.
+        One chain ``A`` (``B``, ... for a layout's further chains), residues ``BEA``
+        numbered from 1 in each chain, one atom ``B`` (carbon) each, the bonds of
+        :meth:`ChainLayout.bonds` (``i -> i + 1`` and, if ``closed``, ``n_beads - 1 -> 0``).
 
     Raises
     ------
     ValueError
         For a bead count that is not an integer or too small.
     """
+    if isinstance(n_beads, ChainLayout):
+        return _layout_topology(n_beads)
     if isinstance(n_beads, bool) or not isinstance(n_beads, (int, np.integer)):
         raise ValueError(f"n_beads={n_beads!r}: expected an integer")
     minimum = 3 if closed else 2
@@ -62,16 +69,18 @@ def bead_topology(n_beads: int, closed: bool = True) -> openmm.app.Topology:
             f"n_beads={n_beads}: a {'closed' if closed else 'open'} chain needs "
             f"at least {minimum} beads"
         )
-    n = int(n_beads)
+    return _layout_topology(ChainLayout((int(n_beads),), (bool(closed),)))
+
+
+def _layout_topology(layout: ChainLayout) -> openmm.app.Topology:
     top = openmm.app.Topology()
-    chain = top.addChain("A")
     element = openmm.app.Element.getBySymbol("C")
     atoms = []
-    for i in range(n):
-        res = top.addResidue(BEAD_RESIDUE, chain, id=str(i + 1))
-        atoms.append(top.addAtom(BEAD_ATOM, element, res))
-    for i in range(n - 1):
-        top.addBond(atoms[i], atoms[i + 1])
-    if closed:
-        top.addBond(atoms[-1], atoms[0])
+    for cid, n in zip(layout.ids, layout.lengths, strict=True):
+        chain = top.addChain(cid)
+        for i in range(n):
+            res = top.addResidue(BEAD_RESIDUE, chain, id=str(i + 1))
+            atoms.append(top.addAtom(BEAD_ATOM, element, res))
+    for i, j in layout.bonds():
+        top.addBond(atoms[int(i)], atoms[int(j)])
     return top

@@ -46,6 +46,7 @@ from knotmm.shapes.curves import braid_curve, torus_curve
 from knotmm.shapes.geometry import TooFewBeadsError, mirror_image, place_on_curve
 from knotmm.shapes.knotinfo import TORUS_NAMES, named_knot_word, symmetry_type
 from knotmm.shapes.resources import check_memory
+from knotmm.shapes.systems import build_chains, build_link, build_open, is_link, is_open
 from knotmm.shapes.template import PendingKnotCheck, Template
 from knotmm.shapes.validation import (
     RUN_FILE_KEYS,
@@ -311,11 +312,17 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         For ``knot.kind = "file"``: whether a file whose bonds leave the ring open (no bond
         from the last bead to the first) is accepted with a note, and closed. By default
         it is refused, since a run would simulate a ring the file does not describe.
-    identify : {"now", "later"}, optional
+    identify : {"now", "later", "skip"}, optional
         When the knot type is identified (topoly, in the knot worker): ``"now"`` waits for
         it; ``"later"`` (a run, which must not wait for topoly's start-up) sends the
         template to the worker and returns: :meth:`Template.settle_knot_type` judges the
-        answer once it is back, and a wrong knot type raises there.
+        answer once it is back, and a wrong knot type raises there; ``"skip"``: not at all.
+
+    A run file's ``[[chains]]`` (several chains in one fluid), a link (a torus link, a
+    closed braid of several components, a LinkInfo name) and an open filament
+    (``knot.closed = false``; kinds ``straight``, ``arc``, ``helix``) are built by
+    :mod:`knotmm.shapes.systems`; the returned template then has a ``layout`` of its
+    chains and, for several chains, their own templates as ``parts``.
 
     Returns
     -------
@@ -350,6 +357,13 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
     ``numpy.random.default_rng(knot.seed or run.seed)``. Bond lengths are checked before the
     perturbation, the steric distance and the knot type after it.
     """
+    if getattr(cfg, "chains", None) is not None:
+        return build_chains(cfg, build_template, allow_open_chain=allow_open_chain,
+                            identify=identify)
+    if is_open(cfg):
+        return build_open(cfg, build_template)
+    if is_link(cfg):
+        return build_link(cfg, identify=identify)
     kind = cfg["knot.kind"]
     bond = check_positive(cfg["model.bond_length"], "model.bond_length")
     sigma = check_positive(cfg["model.lj_sigma"], "model.lj_sigma")
@@ -425,7 +439,7 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         sigma,
         bond_tolerance=None if (relaxed or perturbation > 0.0) else BOND_TOLERANCE,
         expected_knot=expected,
-        identify=not later,
+        identify=not later and identify != "skip",
         min_distance=sigma if relaxed else None,
     )
     if relaxed:
@@ -526,6 +540,7 @@ def build_system(cfg) -> tuple[openmm.app.Topology, openmm.System, np.ndarray]:
     """
     template = build_template(cfg)
     model = ChainModel.from_config(cfg)
-    system = chain_system(template.positions, model)
-    topology = bead_topology(template.n_beads)
-    return topology, system, np.array(site_positions(template.positions, model), dtype=np.float64)
+    system = chain_system(template.positions, model, template.layout)
+    topology = bead_topology(template.layout)
+    positions = site_positions(template.positions, model, template.layout)
+    return topology, system, np.array(positions, dtype=np.float64)

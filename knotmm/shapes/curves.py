@@ -141,8 +141,10 @@ def braid_cycles(word: Sequence[int], strands: int) -> list[list[int]]:
     return cycles
 
 
-def braid_curve(word: Sequence[int], a: float, tilt: float = np.pi / 2) -> TubeCurve:
-    """The closed braid of ``word`` (one component; checked by the caller).
+def braid_curve(word: Sequence[int], a: float, tilt: float = np.pi / 2,
+                cycle: Sequence[int] | None = None) -> TubeCurve:
+    """The closed braid of ``word``: the one component of a knot, or the component of a
+    link that starts in the slots of ``cycle`` (one of :func:`braid_cycles`).
 
     The strands' slots lie on a line through the tube centre in the (rho, z) cross-section,
     ``2 a`` apart, at angle ``tilt`` from the horizontal (pi / 2: stacked vertically, slot 0
@@ -155,9 +157,11 @@ def braid_curve(word: Sequence[int], a: float, tilt: float = np.pi / 2) -> TubeC
     word = [int(g) for g in word]
     strands = max(abs(g) for g in word) + 1
     m = len(word)
-    (cycle,) = braid_cycles(word, strands)
+    if cycle is None:
+        (cycle,) = braid_cycles(word, strands)
+    laps = len(cycle)
     # slot_at[lap, k]: slot of the travelling strand at the start of section k of lap
-    slot_at = np.empty((strands, m), dtype=int)
+    slot_at = np.empty((laps, m), dtype=int)
     for lap, start in enumerate(cycle):
         s = start
         for k, g in enumerate(word):
@@ -174,7 +178,7 @@ def braid_curve(word: Sequence[int], a: float, tilt: float = np.pi / 2) -> TubeC
 
     def offsets(t):
         t = np.asarray(t, dtype=np.float64)
-        lap = np.clip(np.floor(t / (2.0 * np.pi)).astype(int), 0, strands - 1)
+        lap = np.clip(np.floor(t / (2.0 * np.pi)).astype(int), 0, laps - 1)
         phi = t - 2.0 * np.pi * lap
         k = np.clip(np.floor(phi / section).astype(int), 0, m - 1)
         u = phi / section - k
@@ -198,7 +202,7 @@ def braid_curve(word: Sequence[int], a: float, tilt: float = np.pi / 2) -> TubeC
 
     ct, st = abs(np.cos(tilt)), abs(np.sin(tilt))
     rho_min = -((strands - 1) * a * ct + a * st)
-    return TubeCurve(offsets, strands, rho_min, "braid")
+    return TubeCurve(offsets, laps, rho_min, "braid")
 
 
 def _equal_arc_parameters(curve: TubeCurve, r0: float, beads: int) -> np.ndarray:

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from knotmm.model.layout import ChainLayout
 from knotmm.shapes.checks import TemplateCheck, judge_knot_type
 
 __all__ = ["PendingKnotCheck", "Template"]
@@ -44,6 +45,13 @@ class Template:
         The full check report.
     pending : PendingKnotCheck or None
         The knot identification still under way (``build_template(identify="later")``).
+    layout : ChainLayout or None
+        The chains of a system of several chains or of an open one (``None``: one ring).
+    parts : list of Template
+        A system's chains, each its own checked template at its place, in the order of
+        ``layout`` (empty for one chain); ``positions`` holds them one after another.
+    chain_facts : dict
+        What run.toml records of a system beyond its chains' facts (linking numbers).
     """
 
     positions: np.ndarray
@@ -54,6 +62,13 @@ class Template:
     notes: list[str] = field(default_factory=list)
     check: TemplateCheck | None = None
     pending: PendingKnotCheck | None = field(default=None, repr=False, compare=False)
+    layout: ChainLayout | None = None
+    parts: list[Template] = field(default_factory=list, repr=False)
+    chain_facts: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.layout is None:
+            self.layout = ChainLayout.ring(int(self.positions.shape[0]))
 
     @property
     def n_beads(self) -> int:
@@ -62,7 +77,7 @@ class Template:
     @property
     def knot_type_pending(self) -> bool:
         """Whether the knot identification of ``build_template(identify="later")`` is out."""
-        return self.pending is not None
+        return self.pending is not None or any(p.knot_type_pending for p in self.parts)
 
     def settle_knot_type(self, wait: bool = False) -> list[str]:
         """Judge a deferred knot identification once it is back.
@@ -84,6 +99,11 @@ class Template:
             If the template is not the knot it should be (the message
             :func:`build_template` gives with ``identify="now"``).
         """
+        if self.parts:
+            added = [note for part in self.parts for note in part.settle_knot_type(wait)]
+            self.notes.extend(added)
+            self.knot_type = _joined(p.knot_type for p in self.parts)
+            return added
         pending = self.pending
         if pending is None or not (wait or pending.handle.done()):
             return []
@@ -104,8 +124,17 @@ class Template:
         ``template`` (the description), ``template_writhe``, ``template_knot_type`` and
         ``template_bond_range`` (``[shortest, longest]`` bond of the start, in d: off the
         bond length for a file or an explicit ``knot.major_radius``; the bonds relax in the
-        run).
+        run). A system of several chains records ``template`` and ``chains``, one table per
+        chain (``id``, ``beads``, ``closed`` and that chain's facts), and ``chain_facts``.
         """
+        if self.parts:
+            chains = []
+            layout = self.layout
+            for cid, part, ring in zip(layout.ids, self.parts, layout.closed, strict=True):
+                entry = {"id": cid, "beads": part.n_beads, "closed": ring}
+                entry.update({k: v for k, v in part.facts.items() if v is not None})
+                chains.append(entry)
+            return {"template": self.description, "chains": chains, **self.chain_facts}
         facts: dict[str, Any] = {
             "template": self.description,
             "template_writhe": float(self.writhe),
@@ -114,6 +143,12 @@ class Template:
         if self.check is not None:
             facts["template_bond_range"] = [float(self.check.bond_min), float(self.check.bond_max)]
         return facts
+
+
+def _joined(types) -> str | None:
+    """The chains' knot types in one string ("+3_1, 0_1"); None when none is known."""
+    types = list(types)
+    return None if all(t is None for t in types) else ", ".join(str(t) for t in types)
 
 
 @dataclass

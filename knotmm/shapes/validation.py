@@ -24,6 +24,7 @@ __all__ = [
     "check_positive",
     "check_torus",
     "check_word",
+    "parse_word_text",
 ]
 
 #: Argument names as the public functions call them.
@@ -101,7 +102,7 @@ def check_word(word, names: Mapping[str, str]) -> tuple[int, ...]:
     if word is None:
         raise TemplateError(f"{key} is not set: give a braid word, e.g. [1, -2, 1, -2]")
     if isinstance(word, str):
-        word = _parse_word_text(word, key)
+        word = parse_word_text(word, key)
     try:
         items = list(word)
     except TypeError:
@@ -134,7 +135,7 @@ def check_word(word, names: Mapping[str, str]) -> tuple[int, ...]:
     return tuple(items)
 
 
-def _parse_word_text(text: str, key: str) -> list[int]:
+def parse_word_text(text: str, key: str) -> list[int]:
     parts = [p for p in re.split(r"[\s,]+", text.strip().strip("[](){}")) if p]
     try:
         return [int(p) for p in parts]

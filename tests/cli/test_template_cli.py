@@ -41,7 +41,9 @@ def test_cli_knot_forms(argv, writhe_sign, capsys):
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["torus:2,4"], "link of 2 components"),
+        (["torus:2,4", "--beads", "61"], "use knot.beads = 60 or 62"),
+        (["hopf", "--beads", "10"], "knot.beads=10 is too few"),
+        (["L99a1"], "not in the LinkInfo tables"),
         (["torus:2"], "torus:P,Q"),
         (["braid:1,x"], "braid:W"),
         (["widget:3"], "unknown prefix"),

@@ -1,0 +1,240 @@
+"""Run-file templates beyond one closed knot: ``[[chains]]``, links and open filaments.
+
+:func:`knotmm.shapes.builder.build_template` hands a run file here when it gives
+``[[chains]]`` (:func:`build_chains`), a link (:func:`is_link`: a torus link T(p, q) with
+gcd(p, q) > 1, a closed braid whose permutation has several cycles, a LinkInfo name such as
+``L4a1``; :func:`build_link`) or an open filament (:func:`is_open`: ``knot.closed = false``
+or a kind of :data:`knotmm.shapes.open_chains.OPEN_KINDS`; :func:`build_open`). Each returns
+a :class:`knotmm.shapes.template.Template` whose ``layout`` describes its chains. Units: d.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from knotmm.errors import TemplateError
+from knotmm.model.layout import ChainLayout
+from knotmm.shapes.assembly import assemble, place
+from knotmm.shapes.checks import BOND_TOLERANCE, check_template
+from knotmm.shapes.curves import braid_cycles
+from knotmm.shapes.links import COMMON_LINKS, braid_link, named_link, torus_link
+from knotmm.shapes.open_chains import OPEN_KINDS, arc, closest_nonbonded_open, helix, straight
+from knotmm.shapes.resources import check_memory
+from knotmm.shapes.template import Template
+from knotmm.shapes.validation import check_int, check_positive, parse_word_text
+from knotmm.units import LJ_CUTOFF_FACTOR
+
+__all__ = ["build_chains", "build_link", "build_open", "is_link", "is_open"]
+
+_LINK_NAME = re.compile(r"^L\d+[an]\d+(\{[\d,]+\})?$")
+
+
+def is_open(cfg) -> bool:
+    """Whether the ``[knot]`` table asks for an open filament."""
+    return cfg["knot.kind"] in OPEN_KINDS or cfg["knot.closed"] is False
+
+
+def is_link(cfg) -> bool:
+    """Whether the ``[knot]`` table describes a link (several closed components)."""
+    kind = cfg["knot.kind"]
+    if kind == "torus":
+        return math.gcd(int(cfg["knot.p"]), int(cfg["knot.q"])) > 1
+    if kind == "braid":
+        word = cfg["knot.word"]
+        if isinstance(word, str):
+            try:
+                word = parse_word_text(word, "knot.word")
+            except TemplateError:
+                return False  # the knot path names the problem
+        if not (word and all(isinstance(g, int) and g != 0 for g in word)):
+            return False
+        strands = max(abs(g) for g in word) + 1
+        split = {abs(g) for g in word} != set(range(1, strands))  # refused as a knot is
+        return not split and len(braid_cycles(word, strands)) > 1
+    if kind == "knotinfo":
+        name = str(cfg["knot.name"] or "").strip()
+        return bool(_LINK_NAME.match(name)) or name.lower() in COMMON_LINKS
+    return False
+
+
+# -- open filaments ---------------------------------------------------------------------------
+def build_open(cfg, build_template: Callable) -> Template:
+    """An open filament from ``[knot]``: a straight rod, an arc, a helix, or a closed
+    template (a knot, a file) cut open between its last bead and its first.
+
+    Raises
+    ------
+    TemplateError
+        ``knot.closed = true`` with an open kind; too few beads; beads within the steric
+        range of each other; bonds past ``run.max_bond_length``.
+    """
+    kind = cfg["knot.kind"]
+    bond = check_positive(cfg["model.bond_length"], "model.bond_length")
+    steric = LJ_CUTOFF_FACTOR * check_positive(cfg["model.lj_sigma"], "model.lj_sigma")
+    notes: list[str] = []
+    resolved: dict[str, Any] = {}
+    if kind in OPEN_KINDS:
+        if cfg["knot.closed"] is True:
+            raise TemplateError(
+                f"knot.kind={kind!r} is an open filament: leave knot.closed unset (or false), "
+                "or use a closed kind (torus, braid, knotinfo, file)"
+            )
+        beads = check_int(cfg["knot.beads"], "knot.beads", 2)
+        if kind == "straight":
+            x = straight(beads, bond)
+            description = f"straight rod of {beads} beads"
+        elif kind == "arc":
+            x = arc(beads, bond, cfg["knot.arc_degrees"])
+            description = f"arc of {cfg['knot.arc_degrees']:g} degrees, {beads} beads"
+        else:
+            x = helix(beads, bond, cfg["knot.helix_radius"], cfg["knot.helix_pitch"])
+            description = (f"helix of radius {cfg['knot.helix_radius']:g} d, pitch "
+                           f"{cfg['knot.helix_pitch']:g} d, {beads} beads")
+        resolved["knot.beads"] = beads
+        if cfg["knot.mirror"]:
+            x = x * np.array([1.0, 1.0, -1.0])
+            description += " (mirror image)"
+    else:
+        closed = build_template(cfg.replace({"knot.closed": True}), allow_open_chain=True,
+                                identify="skip")
+        x = closed.positions
+        resolved.update(closed.resolved)
+        description = f"{closed.description.split(', writhe')[0]}, cut open"
+        notes.extend(n for n in closed.notes if "open chain" not in n)
+    check_memory(cfg, x.shape[0])
+    perturbation = float(cfg["knot.perturbation"])
+    if perturbation > 0.0:
+        seed = cfg["knot.seed"] if cfg["knot.seed"] is not None else cfg["run.seed"]
+        x = x + np.random.default_rng(seed).normal(scale=perturbation, size=x.shape)
+        x -= x.mean(axis=0)
+        resolved["knot.seed"] = int(seed)
+        notes.append(f"perturbed by {perturbation:g} d (std per coordinate), seed {seed}")
+    bonds = np.linalg.norm(np.diff(x, axis=0), axis=1)
+    if bonds.max() > cfg["run.max_bond_length"]:
+        raise TemplateError(
+            f"knot: the open chain has a bond of {bonds.max():.3f} d, longer than "
+            f"run.max_bond_length={cfg['run.max_bond_length']:g}"
+        )
+    dmin, pair = closest_nonbonded_open(x)
+    limit = steric if kind in OPEN_KINDS and perturbation == 0.0 else cfg["model.lj_sigma"]
+    if dmin < limit:
+        raise TemplateError(
+            f"knot.kind={kind!r}: beads {pair[0]} and {pair[1]} are {dmin:.3f} d apart, inside "
+            f"the steric range {limit:.3f} d; "
+            + ("use a larger knot.helix_radius or knot.helix_pitch" if kind == "helix"
+               else "use another shape or a smaller knot.perturbation")
+        )
+    if kind in OPEN_KINDS and perturbation == 0.0 and (
+            np.abs(bonds - bond).max() > BOND_TOLERANCE * bond):
+        raise TemplateError(f"knot.kind={kind!r}: bonds off the bond length {bond:g} d")
+    notes.append("open chain: its knot type is not defined (not checked)")
+    return Template(
+        positions=np.ascontiguousarray(x, dtype=np.float64),
+        description=description,
+        resolved=resolved,
+        writhe=float("nan"),
+        knot_type=None,
+        notes=notes,
+        layout=ChainLayout((x.shape[0],), (False,)),
+    )
+
+
+# -- links ------------------------------------------------------------------------------------
+def build_link(cfg, identify: str = "now") -> Template:
+    """A link from ``[knot]``: one closed chain per component, their linking numbers.
+
+    ``knot.beads`` is the whole link's bead count, shared among the components in
+    proportion to their lengths (:mod:`knotmm.shapes.links`).
+
+    Raises
+    ------
+    TemplateError
+        An unknown link name, too few beads, components inside the steric range.
+    """
+    from knotmm.knots.linking import linking_numbers
+
+    kind = cfg["knot.kind"]
+    beads = check_int(cfg["knot.beads"], "knot.beads", 8)
+    common = {"bond_length": cfg["model.bond_length"], "minor_radius": cfg["knot.minor_radius"],
+              "mirror": bool(cfg["knot.mirror"])}
+    try:
+        if kind == "torus":
+            shape = torus_link(int(cfg["knot.p"]), int(cfg["knot.q"]), beads, **common)
+        elif kind == "braid":
+            word = cfg["knot.word"]
+            word = parse_word_text(word, "knot.word") if isinstance(word, str) else word
+            shape = braid_link(list(word), beads, **common)
+        else:
+            shape = named_link(str(cfg["knot.name"]), beads, **common)
+    except ValueError as exc:
+        raise TemplateError(f"knot: {exc}") from None
+    sigma = cfg["model.lj_sigma"]
+    steric = LJ_CUTOFF_FACTOR * sigma
+    parts = []
+    for k, x in enumerate(shape.components):
+        check = check_template(x, cfg["model.bond_length"], sigma, bond_tolerance=None,
+                               identify=identify == "now")
+        if check.problems:
+            raise TemplateError(
+                f"knot: component {k} of {shape.name}: {check.problems[0]}; use more knot.beads"
+            )
+        kt = check.knot_type
+        parts.append(Template(
+            positions=np.ascontiguousarray(x, dtype=np.float64),
+            description=f"component {k}" + (f", {kt}" if kt else ""),
+            resolved={}, writhe=check.writhe, knot_type=kt, notes=list(check.notes),
+            check=check,
+        ))
+    numbers = linking_numbers(list(shape.components))
+    ids = ChainLayout(tuple(p.n_beads for p in parts)).ids
+    facts = {"link": shape.name,
+             "linking_numbers": {f"{ids[i]}-{ids[j]}": int(v) for (i, j), v in numbers.items()}}
+    check_memory(cfg, sum(p.n_beads for p in parts))
+    system = assemble(parts, [f"component {k}" for k in range(len(parts))], steric, facts)
+    system.description = f"{shape.name}, {system.description}"
+    system.resolved = {"knot.beads": system.n_beads}
+    return system
+
+
+# -- several chains ---------------------------------------------------------------------------
+def build_chains(cfg, build_template: Callable, *, allow_open_chain: bool = False,
+                 identify: str = "now") -> Template:
+    """The system of a run file's ``[[chains]]``: each entry built as a one-chain run file
+    would be (:meth:`knotmm.config.RunConfig.chain_config`), turned by its ``rotation``,
+    moved to its ``offset``, and checked against the others for overlaps.
+
+    A chain's perturbation seed defaults to ``run.seed + index``, so identical chains are
+    perturbed differently. The template's ``resolved`` is the ``[[chains]]`` array with each
+    entry's resolved keys (``beads``, ``major_radius``, ``seed``).
+    """
+    entries = cfg.chains
+    parts, names = [], []
+    for c, entry in enumerate(entries):
+        sub = cfg.chain_config(c)
+        if sub["knot.perturbation"] > 0.0 and sub["knot.seed"] is None:
+            sub = sub.replace({"knot.seed": int(cfg["run.seed"]) + c})
+        try:
+            part = build_template(sub, allow_open_chain=allow_open_chain, identify=identify)
+        except TemplateError as exc:
+            raise TemplateError(str(exc).replace("knot.", f"chains[{c}].")) from None
+        part.positions = place(part.positions, entry["rotation"], entry["offset"])
+        for chain, sl in zip(part.parts, part.layout.slices(), strict=False):  # a link's components
+            chain.positions = part.positions[sl]
+        for key, value in part.resolved.items():
+            entry[key.split(".", 1)[1]] = value
+        parts.append(part)
+        names.append(f"chains[{c}]")
+    steric = LJ_CUTOFF_FACTOR * cfg["model.lj_sigma"]
+    check_memory(cfg, sum(p.n_beads for p in parts))
+    facts = {}
+    links = [p.chain_facts for p in parts if p.chain_facts]
+    if links:
+        facts["links"] = links
+    system = assemble(parts, names, steric, facts)
+    system.resolved = {"chains": entries}
+    return system
