@@ -1,12 +1,19 @@
 """Issue 23 for ``knotmm movie`` (item 1: an unwritable place refused before rendering, a
 failure while writing in one line with exit code 3, never a truncated movie under its name)
-and ``knotmm analyze --frame-interval 1e300`` (item 7)."""
+and ``knotmm analyze --frame-interval 1e300`` (item 7).
+
+An error is one line, the last on stderr. Off a terminal a movie that fails while it renders
+has printed its progress lines before it (``knotmm: movie: 2 / 5 frames (40 %), ...``, as
+``knotmm run`` does: a log shows how far it got); with ``-q`` or ``--no-progress`` the error
+line is all there is.
+"""
 
 from __future__ import annotations
 
 import errno
 import importlib.util
 import os
+import re
 import subprocess
 from pathlib import Path
 
@@ -28,12 +35,22 @@ def tiny_run(tmp_path_factory):
     return directory
 
 
-def _one_line(capsys, argv, code) -> str:
+#: A progress line of knotmm.progress.Progress off a terminal.
+PROGRESS = re.compile(r"knotmm: movie: \d+ / \d+ frames \(\d+ %\), \d+ s(, about \d+ s left)?$")
+
+
+def _one_line(capsys, argv, code, rendered: bool = False) -> str:
+    """The one error line of ``knotmm ARGV``; ``rendered``: progress lines may come first."""
     got = main(argv)
     err = capsys.readouterr().err.strip().splitlines()
     assert got == code, err
-    assert len(err) == 1 and err[0].startswith("knotmm: error: "), err
-    return err[0]
+    assert err and err[-1].startswith("knotmm: error: "), err
+    before = err[:-1]
+    if rendered:
+        assert all(PROGRESS.match(line) for line in before), before
+    else:
+        assert not before, before
+    return err[-1]
 
 
 def _only(directory: Path) -> set[str]:
@@ -93,10 +110,34 @@ def test_a_full_disk_while_writing_a_gif_keeps_the_old_movie(tiny_run, tmp_path,
     monkeypatch.setattr(Image.Image, "save", full)
     capsys.readouterr()
     line = _one_line(capsys, ["movie", str(tiny_run), "--out", str(out), "--dpi", "20",
-                              "--stride", "8"], 3)
+                              "--stride", "8"], 3, rendered=True)
     assert "m.gif" in line and "no space left on the device (ENOSPC)" in line, line
     assert _only(tmp_path) == {"m.gif"}  # no temporary left
     assert out.read_bytes() == before  # the earlier movie, whole
+
+
+@pytest.mark.parametrize("flags", [["-q"], ["--no-progress"]])
+def test_a_failure_while_writing_is_the_only_line_without_progress(tiny_run, tmp_path, capsys,
+                                                                   monkeypatch, flags):
+    from PIL import Image
+
+    def full(self, fp, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(Image.Image, "save", full)
+    out = tmp_path / "m.gif"
+    line = _one_line(capsys, ["movie", str(tiny_run), "--out", str(out), "--dpi", "20",
+                              "--stride", "4", *flags], 3)
+    assert "m.gif" in line and "no space left" in line, line
+    assert _only(tmp_path) == set()
+    # the same failure off a terminal without the flags: progress lines, then the error
+    _one_line(capsys, ["movie", str(tiny_run), "--out", str(out), "--dpi", "20",
+                       "--stride", "4"], 3, rendered=True)
+    monkeypatch.undo()
+    assert main(["movie", str(tiny_run), "--out", str(out), "--dpi", "20", "--stride", "4"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err and all(PROGRESS.match(line) for line in err), err
+    assert err[-1].startswith("knotmm: movie: 5 / 5 frames (100 %)"), err
 
 
 @pytest.mark.skipif(not HAVE_FFMPEG, reason="imageio-ffmpeg not installed")
@@ -119,7 +160,7 @@ def test_ffmpeg_failing_on_a_full_disk_leaves_no_truncated_mp4(tiny_run, tmp_pat
                         raising=False)
     out = tmp_path / "m.mp4"
     line = _one_line(capsys, ["movie", str(tiny_run), "--out", str(out), "--dpi", "20",
-                              "--stride", "4"], 3)
+                              "--stride", "4"], 3, rendered=True)
     assert "m.mp4" in line and "no space left" in line, line
     assert _only(tmp_path) == set()
 
@@ -136,7 +177,7 @@ def test_ffmpeg_failing_on_a_full_disk_leaves_no_truncated_mp4(tiny_run, tmp_pat
 
     monkeypatch.setattr(imageio_ffmpeg, "write_frames", quiet_ffmpeg)
     line = _one_line(capsys, ["movie", str(tiny_run), "--out", str(out), "--dpi", "20",
-                              "--stride", "4"], 3)
+                              "--stride", "4"], 3, rendered=True)
     assert "m.mp4" in line and "no space left" in line, line
     assert _only(tmp_path) == set()
 
@@ -155,7 +196,7 @@ def test_a_real_full_disk_and_a_read_only_one(tiny_run, small_disk, capsys):
     (small_disk / "filler").write_bytes(b"\0" * 90000)  # two pages left
     for name in ("m.gif", "m.mp4") if HAVE_FFMPEG else ("m.gif",):
         line = _one_line(capsys, ["movie", str(tiny_run), "--out", str(small_disk / name),
-                                  "--dpi", "40", "--stride", "4"], 3)
+                                  "--dpi", "40", "--stride", "4"], 3, rendered=True)
         assert name in line and "no space left" in line, line
         assert _only(small_disk) == {"filler"}
     subprocess.run(["mount", "-o", "remount,ro", str(small_disk)], check=True)
