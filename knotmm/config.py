@@ -493,7 +493,8 @@ class RunConfig(Mapping):
         data = self.to_dict(include_unset=False)
         for dotted, value in changes.items():
             if dotted == "chains":  # the whole [[chains]] array (a template's resolved keys)
-                data["chains"] = value
+                data["chains"] = [{k: v for k, v in dict(e).items() if v is not None}
+                                  for e in value]
                 continue
             table, name = split_key(dotted)
             data.setdefault(table, {})[name] = value

@@ -40,7 +40,9 @@ from knotmm.engine.knot_checks import (
     check_stop_on_change,
     finish_checks,
     knot_watch,
+    linking_watch,
     record_checks,
+    record_linking,
 )
 from knotmm.engine.reporters import DCDReporter, ObservablesReporter, ProgressReporter
 from knotmm.engine.simulation import Simulation
@@ -368,7 +370,9 @@ def _check_same_physics(directory: Path, cfg: RunConfig, stored: dict | None) ->
         return
     now = cfg.to_dict()
     changed = []
-    for table in sorted(set(now) | set(stored)):
+    if now.get("chains") != stored.get("chains"):  # the [[chains]] array as a whole
+        changed.append("[[chains]]")
+    for table in sorted((set(now) | set(stored)) - {"chains"}):
         keys = set(now.get(table, {})) | set(stored.get(table, {}))
         for key in sorted(keys):
             dotted = f"{table}.{key}"
@@ -400,7 +404,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
     ckpt_interval = frame_interval * max(1, math.ceil(cfg["output.checkpoint_interval"]
                                                       / frame_interval - 1e-9))
     reporters = []
-    dcd = obs = watch = bar = None
+    dcd = obs = watch = links = bar = None
     status, message = STATUS_FAULT, None
     z0 = float(facts.get("start_z", sim.positions[:, 2].mean()))
     steps0 = sim.currentStep
@@ -415,6 +419,9 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
         watch = knot_watch(sim, cfg, facts, counters, resuming)
         if watch is not None:
             reporters.append(watch)
+        links = linking_watch(sim, cfg, facts, resuming)
+        if links is not None:
+            reporters.append(links)
         judge = TemplateKnotCheck(template, facts, frame_interval)
         if template is not None and template.knot_type_pending:
             reporters.append(judge)
@@ -509,6 +516,8 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
         )
         if watch is not None:
             record_checks(facts, watch)
+        if links is not None:
+            record_linking(facts, links)
         try:
             with _signals_held():  # a second Ctrl-C must not leave status = "running"
                 retire_stale_analysis(directory)  # an analysis made while it ran

@@ -18,11 +18,14 @@ from knotmm.knots.identify import worker_ready
 
 __all__ = [
     "FINISH_PATIENCE_S",
+    "LinkingWatch",
     "TemplateKnotCheck",
     "checks_not_made",
     "check_stop_on_change",
     "finish_checks",
     "knot_watch",
+    "linking_watch",
+    "record_linking",
     "record_checks",
 ]
 
@@ -162,3 +165,104 @@ def checks_not_made(facts: dict) -> tuple[int, bool]:
     template = facts.get("template_knot_type") is None and any(
         "template knot type not checked" in str(n) for n in facts.get("notes", []) or [])
     return dropped, template
+
+
+class LinkingWatch(TimeScheduled):
+    """Check the linking number of every pair of closed chains every ``interval`` tau_d
+    (the Gauss integral, :func:`knotmm.knots.linking.linking_numbers`; no topoly needed).
+
+    Two rings can pass through each other as one strand can pass through another
+    (docs/model.md): a change is recorded as ``(time, "A-B", old, new)`` in :attr:`changes`
+    and logged, or stops the run (:class:`knotmm.errors.KnotTypeChanged`) with
+    ``on_change="stop"``. A frame in which two chains touch (the integral is no integer)
+    is not a check (:attr:`skipped`).
+
+    Parameters
+    ----------
+    interval : float
+        In tau_d.
+    layout : ChainLayout
+    current : dict or None
+        ``{"A-B": Lk}`` to compare the first check with (run.toml's, on resume); None:
+        the first check sets it.
+    on_change : {"warn", "stop"}
+    first_index : int
+    """
+
+    def __init__(self, interval, layout, current=None, on_change="warn", first_index=0):
+        super().__init__(interval, first_index)
+        self.rings = [(cid, sl) for cid, sl, ring in
+                      zip(layout.ids, layout.slices(), layout.closed, strict=True) if ring]
+        self.current = dict(current) if current else None
+        self.on_change = on_change
+        self.changes: list[tuple[float, str, int, int]] = []
+        self.checks = 0
+        self.skipped = 0
+
+    def numbers(self, positions) -> dict[str, int] | None:
+        """``{"A-B": Lk}`` of the closed chains in ``positions``; None if two touch."""
+        from knotmm.knots.linking import linking_numbers
+
+        try:
+            found = linking_numbers([positions[sl] for _, sl in self.rings])
+        except ValueError:
+            return None
+        ids = [cid for cid, _ in self.rings]
+        return {f"{ids[i]}-{ids[j]}": int(v) for (i, j), v in found.items()}
+
+    def report(self, simulation, state) -> None:
+        from knotmm.errors import KnotTypeChanged
+
+        self.advance()
+        found = self.numbers(simulation.positions)
+        if found is None:
+            self.skipped += 1
+            return
+        self.checks += 1
+        if self.current is None:
+            self.current = found
+            return
+        changed = [(pair, self.current.get(pair), lk) for pair, lk in found.items()
+                   if self.current.get(pair) != lk]
+        self.current = found
+        if not changed:
+            return
+        when = simulation.time
+        for pair, old, new in changed:
+            self.changes.append((when, pair, old, new))
+        message = "; ".join(f"the linking number of chains {pair} changed from {old} to {new}"
+                            for pair, old, new in changed)
+        message += f" by t = {when:.6g} tau_d (step {simulation.currentStep}): rings passed " \
+                   "through each other"
+        if self.on_change == "stop":
+            raise KnotTypeChanged(message + '; run.on_topology_change = "stop"')
+        import logging
+
+        logging.getLogger(__name__).warning(message)
+
+
+def linking_watch(sim, cfg, facts, resuming) -> LinkingWatch | None:
+    """The linking-number reporter of a run with two or more closed chains, or None."""
+    interval = cfg["run.topology_check_interval"]
+    if interval <= 0 or sum(sim.layout.closed) < 2:
+        return None
+    start = facts.get("linking_numbers") if resuming else None
+    watch = LinkingWatch(interval, sim.layout, current=start,
+                         on_change=cfg["run.on_topology_change"],
+                         first_index=int(sim.time / interval + 1e-9) + 1)
+    if start is None:
+        facts["linking_numbers"] = watch.numbers(sim.positions) or {}
+        watch.current = dict(facts["linking_numbers"]) or None
+    return watch
+
+
+def record_linking(facts: dict, watch: LinkingWatch) -> None:
+    """run.toml's record of the linking checks: ``linking_checks``,
+    ``linking_numbers_now`` and every change in order (``linking_number_changes``)."""
+    facts["linking_checks"] = int(facts.get("linking_checks", 0)) + watch.checks
+    if watch.current is not None:
+        facts["linking_numbers_now"] = dict(watch.current)
+    changes = list(facts.get("linking_number_changes", []))
+    changes += [{"time": t, "chains": pair, "from": int(a) if a is not None else None,
+                 "to": int(b)} for t, pair, a, b in watch.changes]
+    facts["linking_number_changes"] = changes
