@@ -4,7 +4,7 @@ A link is built as a knot is (:mod:`knotmm.shapes.curves`), one curve per compon
 the torus of one major radius so that the components cross one another as the diagram says:
 
 * :func:`torus_link`: ``T(p, q)`` with ``g = gcd(p, q) > 1``: ``g`` copies of the torus knot
-  ``T(p/g, q/g)``, turned about the tube's centre-line by ``2 pi / g`` from one another
+  ``T(p/g, q/g)``, turned about the tube's centre-line by ``2 pi g / p`` from one another
   (``T(2, 2)``: the Hopf link, ``T(2, 4)``: Solomon's link). Every component is the same
   length and gets the same number of beads.
 * :func:`braid_link`: the closure of a braid whose strand permutation has several cycles,
@@ -187,7 +187,10 @@ def torus_link(p: int, q: int, beads: int, bond_length: float = 0.6,
         )
     bond_length = check_positive(bond_length, "model.bond_length")
     a = check_positive(minor_radius, "knot.minor_radius")
-    curves = [_rotated_torus_curve(p // g, q // g, a, 2.0 * np.pi * k / g) for k in range(g)]
+    # offsets of the meridian phase by 2 pi / p' give the same curve again (alpha -> alpha +
+    # 2 pi): the g components are turned by 2 pi / (g p') from one another
+    curves = [_rotated_torus_curve(p // g, q // g, a, 2.0 * np.pi * k / (g * (p // g)))
+              for k in range(g)]
     name = f"T({p},{q})"
     r0 = _exact_radius(curves[0], beads // g, bond_length, beads, name)  # all congruent
     return _place(curves, [beads // g] * g, r0, bond_length, mirror, name, beads)
