@@ -23,6 +23,13 @@ a rigid motion of any kind leaves it at zero):
    shape has a spectrum that falls from zero frequency: its highest point in the band is the
    band's lowest bin, however significant against the noise further out. The line must be a
    local maximum: above the bin next to it towards zero frequency (and the one beyond it).
+   A swirl slower than half the window gives such a spectrum too (its line lies below the
+   band), so a red spectrum alone says no more than "no swirl in this window". It says
+   "steady shape" (``steady``) only when the shape's motion dies out as well: the body-frame
+   speed ``u(t) = (sum_i |ds_i/dt|^2)^(1/2)`` (frame differences of the raw signal), averaged
+   over the last quarter of the window, is below :data:`RELAXED` times its average over the
+   first quarter. A swirl keeps ``u`` nearly constant, since its beads carry phases spread
+   over the period; a relaxation ``exp(-t/T)`` passes once the window exceeds ``3 T``.
 3. Amplitude above the file's precision. A DCD stores Angstrom in float32: a coordinate of
    magnitude X (in d) is rounded to within half a float32 spacing, ``ulp(10 X) / 10`` d.
    The line's amplitude (the larger of its rms per-bead half-amplitudes in rho and z) must
@@ -47,16 +54,21 @@ from knotmm.analysis.spectra import refine_frequency
 __all__ = [
     "FALSE_ALARM",
     "PRECISION_FACTOR",
+    "RELAXED",
     "SwirlDetection",
     "detect_swirl",
     "float32_spacing",
     "line_amplitudes",
+    "motion_decay",
 ]
 
 #: False-alarm probability of the significance test.
 FALSE_ALARM = 0.01
 #: The swirl's amplitude must exceed this many float32 spacings of the largest coordinate.
 PRECISION_FACTOR = 10.0
+#: A red spectrum is a relaxation towards a steady shape when the body-frame speed over the
+#: window's last quarter is below this fraction of its speed over the first quarter.
+RELAXED = 0.1
 _GUARD = 3
 _MIN_BINS = 8
 
@@ -85,6 +97,13 @@ class SwirlDetection:
         ``PRECISION_FACTOR`` float32 spacings of the largest coordinate, in d.
     reason : str
         One line: why the swirl is (not) detected.
+    steady : bool
+        The chain converges to a steady shape rather than oscillating: a red spectrum whose
+        motion dies out (module docstring, item 2), or a run with no external force
+        (:mod:`knotmm.analysis.regimes`). Never True with ``detected``.
+    motion_decay : float
+        Body-frame speed over the last quarter of the window over that of the first
+        (module docstring, item 2); about 1 for a swirl, NaN when the window is too short.
     """
 
     detected: bool
@@ -97,6 +116,8 @@ class SwirlDetection:
     amplitude_z: float
     amplitude_floor: float
     reason: str
+    steady: bool = False
+    motion_decay: float = math.nan
 
     def to_dict(self) -> dict:
         """JSON-ready summary."""
@@ -112,6 +133,8 @@ class SwirlDetection:
             "amplitude_z": self.amplitude_z,
             "amplitude_floor": self.amplitude_floor,
             "reason": self.reason,
+            "steady_shape": self.steady,
+            "motion_decay": self.motion_decay,
         }
 
 
@@ -219,6 +242,7 @@ def detect_swirl(times, rho, z, max_coordinate: float | None = None) -> SwirlDet
     toward = int(np.flatnonzero(bins == int(round(kk)) - step)[0])
     beyond = np.flatnonzero(bins == int(round(kk)) + step)
     peak = power[k] > power[toward] and (not beyond.size or power[k] > power[beyond[0]])
+    decay = motion_decay(rho, z)
     if ratio <= threshold:
         reason = (
             f"no swirl detected: the strongest line of the swirl band (period "
@@ -227,12 +251,16 @@ def detect_swirl(times, rho, z, max_coordinate: float | None = None) -> SwirlDet
         )
         detected = False
     elif not peak:
-        reason = (
-            f"no swirl detected: the swirl band's strongest bin (period "
-            f"{m * dt / abs(kk):.4g} tau_d) is no spectral line: the power rises towards "
-            "zero frequency (a drift or a relaxation towards a steady shape, not an "
-            "oscillation)"
-        )
+        head = (f"no swirl detected: the swirl band's strongest bin (period "
+                f"{m * dt / abs(kk):.4g} tau_d) is no spectral line: the power rises towards "
+                f"zero frequency")
+        if decay < RELAXED:
+            reason = (f"{head} and the shape's motion dies out (its body-frame speed falls "
+                      f"to {decay:.2g} of its start over the window): a relaxation towards "
+                      f"a steady shape, not an oscillation")
+        else:
+            reason = (f"{head} while the shape keeps moving: a drift, or a swirl slower "
+                      f"than half the window ({m * dt:.4g} tau_d); a longer run tells")
         detected = False
     elif amplitude <= floor:
         reason = (
@@ -249,5 +277,31 @@ def detect_swirl(times, rho, z, max_coordinate: float | None = None) -> SwirlDet
         )
         detected = True
     return SwirlDetection(
-        detected, freq, ratio, threshold, p_value, n_bins, a_rho, a_z, floor, reason
+        detected, freq, ratio, threshold, p_value, n_bins, a_rho, a_z, floor, reason,
+        steady=bool(not peak and ratio > threshold and decay < RELAXED), motion_decay=decay,
     )
+
+
+def motion_decay(rho, z) -> float:
+    """Body-frame speed over the last quarter of the frames over that over the first.
+
+    Parameters
+    ----------
+    rho, z : ndarray, shape (n_frames, n_beads)
+        Body-frame radius and height of every bead, in d (uniform frames).
+
+    Returns
+    -------
+    float
+        ``mean(u, last quarter) / mean(u, first quarter)``, ``u`` the frame-to-frame
+        displacement of the signal ``z + i rho`` summed over beads in quadrature (module
+        docstring, item 2); NaN with fewer than 5 frames, inf when the first quarter is at
+        rest.
+    """
+    s = np.asarray(z, dtype=np.float64) + 1j * np.asarray(rho, dtype=np.float64)
+    u = np.sqrt((np.abs(np.diff(s, axis=0)) ** 2).sum(axis=1))
+    if len(u) < 4:
+        return math.nan
+    quarter = len(u) // 4
+    early, late = float(u[:quarter].mean()), float(u[-quarter:].mean())
+    return late / early if early > 0 else (math.inf if late > 0 else 1.0)

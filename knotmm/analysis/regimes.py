@@ -77,8 +77,7 @@ class Regime:
 #: Why an undriven run has no swirl (module docstring, item 1).
 UNDRIVEN = (
     "no swirl: model.gravity = 0, and with no external force the overdamped chain only "
-    "lowers its energy (dU/dt = -F.M F <= 0): it converges to a steady shape and has no "
-    "periodic orbit"
+    "lowers its energy (dU/dt = -F.M F <= 0) until its shape is steady"
 )
 
 
@@ -87,7 +86,7 @@ def _detect(body: BodyFrame, positions: np.ndarray, sel: slice,
     top = float(np.abs(positions[sel]).max())
     found = detect_swirl(body.times[sel], body.rho[sel], body.z[sel], max_coordinate=top)
     if not driven:
-        return replace(found, detected=False, reason=UNDRIVEN)
+        return replace(found, detected=False, reason=UNDRIVEN, steady=True)
     return found
 
 

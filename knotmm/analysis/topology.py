@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from knotmm.io.rundir import RUN_FILE
 from knotmm.knots import chirality
 from knotmm.knots.identify import identify_knot
 from knotmm.knots.writhe import writhe as _writhe
@@ -273,7 +274,7 @@ def run_knot(data, chains, initial: str | None = None) -> RunKnot:
     facts = data.get("knotmm", {}) or {}
     recorded = facts.get("template_knot_type") or facts.get("knot_type_start")
     if recorded:
-        knot_type, source = str(recorded), "run.toml"
+        knot_type, source = str(recorded), RUN_FILE
     elif initial is not None:
         knot_type, source = initial, "topoly"
     else:

@@ -176,6 +176,6 @@ def test_rigid_trefoil_has_no_swirl_amplitude(tmp_path):
 def test_plots_and_table_without_swirl(tmp_path):
     run = write_run_directory(tmp_path / "ring", rigid_ring(TIMES[:121]), DT, CONFIG)
     result = analyze_run(run, plots=True, knot_samples=0)
-    assert len(result.plots) == 4 and all((run / f).is_file() for f in result.plots)
+    assert len(result.plots) == 3 and all((run / f).is_file() for f in result.plots)
     table = format_table(result)
     assert "no swirl detected" in table and "C [d]" in table
