@@ -25,7 +25,14 @@ from knotmm.orbit.flow import make_flow
 from knotmm.orbit.modes import describe_mode
 from knotmm.orbit.output import orbit_summary, write_orbit_files
 from knotmm.orbit.shooting import DEFAULT_TOLERANCE, solve_orbit
-from knotmm.orbit.start import MAX_RECURRENCE, refine_guess, start_from_run
+from knotmm.orbit.start import (
+    FIXED_POINT_MOTION,
+    MAX_RECURRENCE,
+    STEADY,
+    refine_guess,
+    shape_speed,
+    start_from_run,
+)
 
 __all__ = ["OrbitReport", "OrbitInterrupted", "orbit_of_run", "continuation_of_run",
            "DEFAULT_MODES"]
@@ -129,7 +136,19 @@ def _make_flow_map(start, timestep, engine, threads):
 
 
 def _shoot(run_dir, start, flow, tolerance):
-    """Sharpen the guess and shoot; returns (Orbit, initial recurrence distance in d)."""
+    """Sharpen the guess and shoot; returns (Orbit, initial recurrence distance in d).
+
+    A fixed point is refused (:data:`knotmm.orbit.start.STEADY`): before shooting, when its
+    shape moves less than ``FIXED_POINT_MOTION`` over the period guess; after, when Newton
+    shrank the period below half the guess (any period fits a fixed point).
+    """
+    motion = shape_speed(flow, start.positions) * start.tau_swirl
+    if motion < FIXED_POINT_MOTION:
+        raise ConfigError(
+            f"{run_dir}: {STEADY} (at t = {start.time:g} tau_d the shape moves "
+            f"{motion:.2g} d rms per bead over the period guess {start.tau_swirl:.4g} tau_d, "
+            f"below {FIXED_POINT_MOTION:g} d: a fixed point)"
+        )
     period, rotation, distance = refine_guess(flow, start.positions, start.tau_swirl)
     if distance > MAX_RECURRENCE:
         raise ConfigError(
@@ -139,6 +158,11 @@ def _shoot(run_dir, start, flow, tolerance):
             f"{start.window[0]:g} .. {start.window[1]:g}"
         )
     orbit = solve_orbit(flow, start.positions, period, rotation, tolerance=tolerance)
+    if orbit.period < 0.5 * period:
+        raise ConfigError(
+            f"{run_dir}: {STEADY} (Newton shrank the period from {period:.4g} to "
+            f"{orbit.period:.3g} tau_d: a fixed point, which any period fits)"
+        )
     return orbit, distance
 
 

@@ -5,6 +5,11 @@ periodic window and gives ``tau_swirl``. The state is the frame nearest the midd
 window (or a time the user names). The guess of the period is then sharpened by one
 integration of :math:`1.3\\,\\tau_{swirl}`: the time in ``0.7 .. 1.3 tau_swirl`` at which the
 chain, centred and turned back by the best rotation about ``z``, comes closest to its start.
+
+A fixed point (a chain that converges to a steady shape: no gravity, a rigid ring) is
+"periodic" with any period, and Newton happily shrinks the period to nothing: such a run is
+refused with :data:`STEADY` (ConfigError, exit code 2), when its analysis says so and when the
+chain's shape barely moves under the flow (:func:`shape_speed`).
 """
 
 from __future__ import annotations
@@ -19,10 +24,16 @@ from knotmm.errors import ConfigError
 from knotmm.orbit.flow import centre, rms, rotate_z
 from knotmm.orbit.shooting import best_rotation
 
-__all__ = ["OrbitStart", "start_from_run", "refine_guess"]
+__all__ = ["OrbitStart", "STEADY", "FIXED_POINT_MOTION", "shape_speed", "start_from_run",
+           "refine_guess"]
 
 #: A start whose best recurrence is farther than this (d rms per bead) is not periodic.
 MAX_RECURRENCE = 0.25
+#: The refusal of a fixed point (the start of the one-line message).
+STEADY = "the run converges to a steady shape: no periodic orbit"
+#: A shape that moves less than this over a period guess (d rms per bead) is a fixed point;
+#: a swirl moves its beads by about 2 pi C (C ~ 0.1-1 d) per period.
+FIXED_POINT_MOTION = 1e-2
 
 
 @dataclass
@@ -88,6 +99,9 @@ def start_from_run(run_dir, t: float | None = None) -> OrbitStart:
             f"deterministic model: use a run with run.peclet unset (infinite)"
         )
     result = analyze(data, knot_samples=0, fit=False)
+    detection = result.extra.get("swirl_detection") or {}
+    if not result.swirl_detected and detection.get("steady_shape"):
+        raise ConfigError(f"{run_dir}: {STEADY}; the analysis says {detection.get('reason')}")
     if not result.swirl_detected or not (result.tau_swirl and result.tau_swirl > 0):
         why = "; ".join(result.notes[:2]) if getattr(result, "notes", None) else ""
         raise ConfigError(
@@ -106,6 +120,29 @@ def start_from_run(run_dir, t: float | None = None) -> OrbitStart:
     k = int(np.argmin(np.abs(times - t)))
     x = centre(np.asarray(data.positions[k], dtype=float))
     return OrbitStart(x, float(times[k]), float(result.tau_swirl), window, cfg)
+
+
+def shape_speed(flow, x: np.ndarray) -> float:
+    """How fast the shape of ``x`` changes: the rms bead velocity left when the rigid motions
+    (a translation, a rotation about ``z``) are taken out, in d/tau_d.
+
+    A relative equilibrium (a steady shape falling and turning) gives 0; a swirl about
+    ``2 pi C / tau_swirl``.
+
+    Parameters
+    ----------
+    flow : knotmm.orbit.flow.FlowMap
+    x : ndarray, shape (n_beads, 3), in d
+    """
+    x = centre(np.asarray(x, dtype=float))
+    v = flow.velocity(x)
+    v = v - v.mean(axis=0)
+    turn = np.zeros_like(x)
+    turn[:, 0], turn[:, 1] = -x[:, 1], x[:, 0]  # e_z x r
+    norm = float((turn * turn).sum())
+    if norm > 0:
+        v = v - turn * float((v * turn).sum()) / norm
+    return rms(v)
 
 
 def refine_guess(flow, x: np.ndarray, tau: float, samples: int = 130):
