@@ -1,7 +1,8 @@
 """Running sweeps: local processes, failing points, resume, a crashed worker, Dask.
 
 The runs are tiny (30-36 beads, 9 tau_d, no knot-type checks, analysis without knot
-identification or plots).
+identification or plots); the mixed sweep whose summary is checked runs 20 tau_d, long
+enough to swirl (below).
 """
 
 from __future__ import annotations
@@ -27,8 +28,16 @@ TINY = {
 }
 
 
-def tiny_sweep(directory, **sweep) -> Sweep:
+#: The mixed sweep's duration, tau_d. N = 30 and 36 swirl with tau_swirl = 4.8 and 4.9 tau_d;
+#: the detector needs two periods in the window after the relaxation (at 9 tau_d N = 36 has
+#: 7.5 tau_d: a red spectrum, no tau_swirl), 20 tau_d gives about three.
+SWIRLING = 20.0
+
+
+def tiny_sweep(directory, run_duration: float | None = None, **sweep) -> Sweep:
     data = {k: dict(v) for k, v in TINY.items()}
+    if run_duration is not None:
+        data["run"]["duration"] = run_duration
     data["output"]["directory"] = str(directory)
     data["sweep"] = {"knot_samples": 0, "plots": False, **sweep}
     return Sweep.from_dict(data)
@@ -45,7 +54,7 @@ MIXED = {
 @pytest.fixture(scope="module")
 def local_sweep(tmp_path_factory):
     directory = tmp_path_factory.mktemp("local") / "sweep"
-    sweep = tiny_sweep(directory, **MIXED)
+    sweep = tiny_sweep(directory, SWIRLING, **MIXED)
     result = run_sweep(sweep, workers=2, progress=False)
     return sweep, result
 
@@ -79,11 +88,11 @@ def test_summary_and_point_directories(local_sweep):
             "tau_rot_over_tau_sed",
         ):
             assert isinstance(row[key], float) and row[key] > 0, key
-        assert row["time_reached"] == 9.0
+        assert row["time_reached"] == SWIRLING
         point_dir = result.directory / row["directory"]
         assert (point_dir / "analysis.json").exists()
         data = load_run(point_dir)  # an ordinary run directory
-        assert data.positions.shape == (19, row["knot.beads"], 3)
+        assert data.positions.shape == (41, row["knot.beads"], 3)
     assert rows[2]["tau_sed"] is None
     assert (result.directory / "ratios.png").stat().st_size > 1000
     assert (result.directory / "sweep.toml").exists()
@@ -93,7 +102,7 @@ def test_dask_cluster_gives_the_same_rows(local_sweep, tmp_path):
     distributed = pytest.importorskip("distributed")
     sweep, local = local_sweep
     directory = tmp_path / "dask"
-    other = tiny_sweep(directory, **MIXED)
+    other = tiny_sweep(directory, SWIRLING, **MIXED)
     with distributed.LocalCluster(
         n_workers=2,
         threads_per_worker=1,
@@ -156,7 +165,7 @@ def test_changed_parameters_are_run_again(local_sweep, tmp_path):
     point = sweep.points[0]
     assert plan_point(point, result.directory / point.name, False)[0] == "skip"
     assert plan_point(point, result.directory / point.name, True)[0] == "analyze"
-    changed = tiny_sweep(result.directory, **{**MIXED, "knot.minor_radius": [0.5] * 4})
+    changed = tiny_sweep(result.directory, SWIRLING, **{**MIXED, "knot.minor_radius": [0.5] * 4})
     assert plan_point(changed.points[0], result.directory / point.name, False)[0] == "run"
 
 
