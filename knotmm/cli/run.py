@@ -64,8 +64,63 @@ def config_from_args(args) -> RunConfig:
     return cfg
 
 
+def knot_lines(facts: dict) -> list[str]:
+    """What ``knotmm run`` prints about the knot checks: the changes line and the note for the
+    summary line.
+
+    Parameters
+    ----------
+    facts : dict
+        The ``[knotmm]`` table of run.toml (``knot_type_changes``: dicts with ``time`` in
+        tau_d, ``from``, ``to``; ``knot_type_checks_dropped``; ``notes``).
+
+    Returns
+    -------
+    list of str
+        ``[changes, not_made]``, each ``""`` when there is nothing to say: ``changes`` lists
+        every change of knot type in order, ``"knot type changed: +5_2 -> -8_20 at t = 30,
+        -8_20 -> +9_24 at t = 100 tau_d"``; ``not_made`` says how many checks were not made
+        (the knot worker had not started topoly when the run ended) and that ``knotmm
+        analyze`` makes them.
+    """
+    from knotmm.analysis.topology import describe_changes
+    from knotmm.engine.knot_checks import checks_not_made
+
+    changes = describe_changes(facts.get("knot_type_changes", []) or [])
+    first = f"knot type changed: {changes}" if changes else ""
+    dropped, template = checks_not_made(facts)
+    parts = []
+    if dropped:
+        parts.append(f"{dropped} knot-type check{'s' if dropped != 1 else ''}")
+    if template:
+        parts.append("the template's knot-type check")
+    not_made = ""
+    if parts:
+        them = "them" if dropped + template > 1 else "it"
+        not_made = (f"{' and '.join(parts)} not made (topoly had not started when the run "
+                    f"ended): knotmm analyze makes {them}")
+    return [first, not_made]
+
+
+def _report(result) -> None:
+    """Print the knot-type changes, then the one-line summary (with any checks not made)."""
+    import sys
+
+    from knotmm.io.rundir import read_facts
+
+    try:
+        facts = read_facts(result.directory)
+    except Exception:  # the summary must not fail for run.toml  # noqa: BLE001
+        facts = {}
+    changes, not_made = knot_lines(facts)
+    sys.stderr.flush()  # the run's own warnings first, then these lines in order
+    if changes:
+        print(changes)
+    print(result.summary() + (f"; {not_made}" if not_made else ""), flush=True)
+
+
 def execute(args) -> int:
-    """Run and print the one-line summary."""
+    """Run and print the knot-type changes and the one-line summary."""
     from knotmm.engine.interrupt import stop_between_steps
     from knotmm.errors import ConfigError
     from knotmm.workflow import resume, run
@@ -82,10 +137,10 @@ def execute(args) -> int:
         # Ctrl-C / SIGTERM: finish the step, checkpoint that state, then stop (exit 130)
         with stop_between_steps():
             result = resume(args.resume, progress=args.progress, duration=args.duration)
-        print(result.summary())
+        _report(result)
         return 0
     cfg = config_from_args(args)
     with stop_between_steps():
         result = run(cfg, overwrite=args.overwrite, progress=args.progress)
-    print(result.summary())
+    _report(result)
     return 0
