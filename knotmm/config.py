@@ -210,6 +210,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "N = 120, 1.6x at 240, 1.7x at 480; keep 1 when sweep workers fill the cores", 1,
         ),
         "seed": Key("int", 1, "random seed (noise, perturbations)", 0),
+        "replicas": Key(
+            "int", 1, "independent copies of the run, in one process, written to "
+            "DIR/replica_0 ... (each seeded from run.seed; knotmm.replicas)", 1,
+        ),
         "noise": Key(
             "str", "auto",
             "Brownian noise sqrt(mu) xi: auto (cholesky up to 300 beads, else lanczos), "

@@ -26,7 +26,7 @@ LAYERS = [
     {"shapes"},
     {"plugin"},
     {"engine"},
-    {"workflow"},
+    {"workflow", "replicas"},
     {"analysis"},
     {"orbit"},
     {"sweep"},

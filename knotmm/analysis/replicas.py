@@ -24,6 +24,7 @@ import re
 from pathlib import Path
 
 from knotmm.errors import ConfigError
+from knotmm.io.replica_set import is_replica_set
 from knotmm.io.rundir import RUN_FILE
 
 __all__ = [
@@ -39,12 +40,13 @@ logger = logging.getLogger(__name__)
 #: Written into the sweep directory.
 REPLICAS_FILE = "replicas.json"
 _SWEEP_FILE = "sweep.toml"  # the sweep directory's marker (knotmm.sweep writes it)
-_REPLICA = re.compile(r"(^|,)replica=\d+(?=,|$)")
+_REPLICA = re.compile(r"(^|,)replica[=_]\d+(?=,|$)")
 
 
 def is_sweep_directory(path) -> bool:
-    """Whether ``path`` is a sweep directory (holds a ``sweep.toml``)."""
-    return (Path(path) / _SWEEP_FILE).is_file()
+    """Whether ``path`` is a sweep directory (holds a ``sweep.toml``) or a replicated run's
+    directory (``replicas.toml``, :mod:`knotmm.io.replica_set`: one point, its replicas)."""
+    return (Path(path) / _SWEEP_FILE).is_file() or is_replica_set(path)
 
 
 def point_of(name: str) -> str:
@@ -53,6 +55,8 @@ def point_of(name: str) -> str:
     >>> point_of("knot.beads=90,replica=3")
     'knot.beads=90'
     >>> point_of("replica=0")
+    'all'
+    >>> point_of("replica_2")  # a replica of a replicated run
     'all'
     """
     point = _REPLICA.sub("", name).strip(",")
@@ -136,7 +140,7 @@ def analyze_sweep(directory, **kwargs) -> dict:
 
     root = Path(directory)
     if not is_sweep_directory(root):
-        raise ConfigError(f"{root}: not a sweep directory (no {_SWEEP_FILE})")
+        raise ConfigError(f"{root}: not a sweep directory (no {_SWEEP_FILE}) nor a replica set")
     runs = sorted(
         (p for p in root.iterdir() if (p / RUN_FILE).is_file()), key=lambda p: _natural(p.name)
     )

@@ -1,0 +1,132 @@
+"""Replicas of a run in one process: each equals the single run with its recorded seed, a
+breakdown of one leaves the others, an interrupted set resumes, the set is analysed."""
+
+from __future__ import annotations
+
+import json
+
+import mdtraj
+import numpy as np
+import pytest
+
+import knotmm.replicas as replicas
+from knotmm.analysis.replicas import analyze_sweep
+from knotmm.cli.main import main
+from knotmm.config import RunConfig
+from knotmm.errors import SimulationFault
+from knotmm.io.replica_set import read_replica_set
+from knotmm.io.rundir import read_facts
+from knotmm.replicas import replica_seeds, resume_replicas, run_replicas
+from knotmm.workflow import run
+
+BROWNIAN = {
+    "knot": {"beads": 30, "minor_radius": 0.6},
+    "model": {"gravity": 1.0},
+    "run": {"duration": 1.0, "peclet": 10.0, "integrator": "ito_heun", "timestep": 0.002,
+            "topology_check_interval": 0.0, "replicas": 3, "seed": 11},
+    "output": {"frame_interval": 0.05},
+}
+
+
+def _xyz(directory):
+    return mdtraj.load(str(directory / "trajectory.dcd"), top=str(directory / "topology.pdb")).xyz
+
+
+def test_seeds_are_spawned_from_run_seed_and_keep_when_replicas_are_added():
+    want = [int(np.random.SeedSequence(11, spawn_key=(k,)).generate_state(1, np.uint32)[0])
+            for k in range(5)]
+    assert replica_seeds(11, 5) == want
+    assert replica_seeds(11, 3) == want[:3]
+    assert len(set(want)) == 5
+
+
+@pytest.fixture(scope="module")
+def brownian_set(tmp_path_factory):
+    root = tmp_path_factory.mktemp("set") / "set"
+    result = run_replicas(RunConfig.from_dict(BROWNIAN), directory=root, progress=False)
+    return root, result
+
+
+def test_fixed_step_brownian_replicas_equal_single_runs_with_their_seeds(brownian_set,
+                                                                          tmp_path):
+    root, result = brownian_set
+    assert result.count == 3 and not result.errors
+    record = read_replica_set(root)
+    seeds = record["replicas"]["seeds"]
+    assert seeds == replica_seeds(11, 3)
+    frames = []
+    for k, seed in enumerate(seeds):
+        facts = read_facts(root / f"replica_{k}")
+        assert facts["status"] == "finished"
+        single = tmp_path / f"single_{k}"
+        cfg = RunConfig.from_dict({**BROWNIAN, "run": {**BROWNIAN["run"], "replicas": 1,
+                                                       "seed": seed}})
+        run(cfg, directory=single, progress=False)
+        np.testing.assert_array_equal(_xyz(root / f"replica_{k}"), _xyz(single))
+        frames.append(_xyz(single))
+    assert not np.array_equal(frames[0], frames[1])  # the noise differs between replicas
+    assert "+-" in result.summary() and "3 replicas" in result.summary()
+
+
+def test_the_set_is_analysed_as_one_point(brownian_set):
+    root, _ = brownian_set
+    out = analyze_sweep(root, plots=False, knot_samples=0)
+    stats = out["points"]["all"]["statistics"]["sedimentation_velocity"]
+    assert stats["n"] == 3 and stats["std_error"] > 0
+    values = [json.loads((root / f"replica_{k}" / "analysis.json").read_text())
+              ["sedimentation_velocity"] for k in range(3)]
+    assert stats["mean"] == pytest.approx(np.mean(values), rel=1e-12)
+    assert stats["std_error"] == pytest.approx(np.std(values, ddof=1) / np.sqrt(3), rel=1e-9)
+
+
+def test_a_breakdown_of_one_replica_is_recorded_and_the_others_go_on(tmp_path, monkeypatch):
+    real = replicas.run
+
+    def flaky(cfg, directory, **kwargs):
+        if directory.name == "replica_1":
+            raise SimulationFault("the step is too large for the forces (a test fault)")
+        return real(cfg, directory=directory, **kwargs)
+
+    monkeypatch.setattr(replicas, "run", flaky)
+    cfg = RunConfig.from_dict({**BROWNIAN, "run": {**BROWNIAN["run"], "duration": 0.5}})
+    result = run_replicas(cfg, directory=tmp_path / "s", progress=False)
+    assert list(result.errors) == [1] and "a test fault" in result.errors[1]
+    assert result.results[1] is None and result.results[0] and result.results[2]
+    assert "1 broke down (1)" in result.summary()
+
+
+def test_an_interrupted_set_resumes_to_the_same_trajectories(tmp_path, monkeypatch,
+                                                             brownian_set):
+    root_ref, _ = brownian_set
+    real = replicas.run
+
+    def interrupted(cfg, directory, **kwargs):
+        if directory.name == "replica_2":
+            raise KeyboardInterrupt
+        return real(cfg, directory=directory, **kwargs)
+
+    monkeypatch.setattr(replicas, "run", interrupted)
+    root = tmp_path / "s"
+    with pytest.raises(KeyboardInterrupt):
+        run_replicas(RunConfig.from_dict(BROWNIAN), directory=root, progress=False)
+    monkeypatch.setattr(replicas, "run", real)
+    result = resume_replicas(root, progress=False)
+    assert not result.errors and all(r is not None for r in result.results)
+    for k in range(3):
+        np.testing.assert_array_equal(_xyz(root / f"replica_{k}"),
+                                      _xyz(root_ref / f"replica_{k}"))
+    # extending the set extends every replica
+    longer = resume_replicas(root, progress=False, duration=1.5)
+    assert all(r.time == pytest.approx(1.5) for r in longer.results)
+
+
+def test_bad_replica_counts_and_occupied_directories_are_one_line(tmp_path, capsys,
+                                                                  brownian_set):
+    path = tmp_path / "r.toml"
+    path.write_text(f"[run]\nreplicas = 0\n[output]\ndirectory = {str(tmp_path / 'o')!r}\n")
+    assert main(["run", str(path), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "run.replicas" in err[0], err
+    root, _ = brownian_set
+    with pytest.raises(Exception, match="already holds a replica set"):
+        run_replicas(RunConfig.from_dict(BROWNIAN), directory=root, progress=False)
