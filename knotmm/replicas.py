@@ -243,6 +243,12 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     cfg = RunConfig.from_dict(record["run_file"])
     if duration is not None:
         cfg = cfg.replace({"run.duration": float(duration)})
+    target = float(duration) if duration is not None else cfg["run.duration"]
+    if all(_done(replica_directory(root, k), target) for k in range(len(seeds))):
+        raise RunDirectoryError(
+            f"--resume {str(root)!r}: every replica already finished at t = {target:g} tau_d; "
+            f"pass --duration T with a larger T to extend them"
+        )
     lock = RunLock(root, "--resume")
     errors: dict[int, str] = {}
     results: list[RunResult | None] = []
@@ -256,11 +262,8 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
                     sub, directory=where, overwrite=True, progress=progress,
                     wait_for_checks=wait_for_checks), errors))
                 continue
-            facts = read_facts(where)
-            reached = float(facts.get("time_reached", 0.0) or 0.0)
-            target = float(duration) if duration is not None else cfg["run.duration"]
-            if status == "finished" and reached >= target - 1e-9:
-                results.append(_finished(where, facts))
+            if _done(where, target):
+                results.append(_finished(where, read_facts(where)))
                 continue
             results.append(_one(k, lambda where=where: resume(
                 where, progress=progress, duration=duration,
@@ -270,6 +273,13 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     finally:
         lock.release()
     return ReplicaSetResult(root, results, errors, time.perf_counter() - wall0)
+
+
+def _done(where: Path, target: float) -> bool:
+    """Whether the replica in ``where`` finished at ``target`` tau_d or later."""
+    if not (where / RUN_FILE).is_file() or run_status(where) != "finished":
+        return False
+    return float(read_facts(where).get("time_reached", 0.0) or 0.0) >= target - 1e-9
 
 
 def _finished(where: Path, facts: dict) -> RunResult:

@@ -123,7 +123,8 @@ def execute(args) -> int:
     """Run and print the knot-type changes and the one-line summary."""
     from knotmm.engine.interrupt import stop_between_steps
     from knotmm.errors import ConfigError
-    from knotmm.workflow import resume, run
+    from knotmm.replicas import resume_replicas as resume
+    from knotmm.replicas import run_replicas as run
 
     if args.resume:
         given = [o for o, v in (("RUN.toml", args.run_file), ("--out", args.out),
@@ -135,12 +136,12 @@ def execute(args) -> int:
                 f"{', '.join(given)}): a resumed run keeps the parameters in its run.toml"
             )
         # Ctrl-C / SIGTERM: finish the step, checkpoint that state, then stop (exit 130)
-        with stop_between_steps():
+        with stop_between_steps():  # a signal once the run is recorded: no stop left to make
             result = resume(args.resume, progress=args.progress, duration=args.duration)
-        _report(result)
-        return 0
+            _report(result)
+        return 3 if getattr(result, "errors", None) else 0  # a replica broke down
     cfg = config_from_args(args)
     with stop_between_steps():
         result = run(cfg, overwrite=args.overwrite, progress=args.progress)
-    _report(result)
-    return 0
+        _report(result)
+    return 3 if getattr(result, "errors", None) else 0  # a replica broke down

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 
+from knotmm.engine.interrupt import raise_if_requested
 from knotmm.engine.schedule import TimeScheduled
 from knotmm.errors import ConfigError
 from knotmm.knots.identify import worker_ready
@@ -152,6 +153,7 @@ def finish_checks(judge: TemplateKnotCheck, watch, wait: bool = False,
     if not wait and _under_way(judge, watch):
         deadline = time.monotonic() + patience
         while not worker_ready() and time.monotonic() < deadline:
+            raise_if_requested()  # Ctrl-C while waiting: the run stops here, resumable
             time.sleep(0.05)
     judge.settle(wait=wait or worker_ready(), end=True)
     if watch is not None:

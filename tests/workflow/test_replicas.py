@@ -130,3 +130,16 @@ def test_bad_replica_counts_and_occupied_directories_are_one_line(tmp_path, caps
     root, _ = brownian_set
     with pytest.raises(Exception, match="already holds a replica set"):
         run_replicas(RunConfig.from_dict(BROWNIAN), directory=root, progress=False)
+
+
+def test_the_command_line_runs_and_resumes_a_set(tmp_path, capsys):
+    out = tmp_path / "cli"
+    argv = ["run", "--out", str(out), "--beads", "30", "--duration", "0.5", "--no-progress",
+            "--set", "run.replicas=2", "--set", "run.topology_check_interval=0"]
+    assert main(argv) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert line.startswith("2 replicas: 2 simulated 0.5 tau_d")
+    assert main(["run", "--resume", str(out)]) == 2
+    assert "every replica already finished" in capsys.readouterr().err
+    assert main(["run", "--resume", str(out), "--duration", "1"]) == 0
+    assert read_facts(out / "replica_1")["time_reached"] == pytest.approx(1.0)
