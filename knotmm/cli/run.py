@@ -83,11 +83,13 @@ def knot_lines(facts: dict) -> list[str]:
         (the knot worker had not started topoly when the run ended) and that ``knotmm
         analyze`` makes them.
     """
-    from knotmm.analysis.topology import describe_changes
     from knotmm.engine.knot_checks import checks_not_made
 
-    changes = describe_changes(facts.get("knot_type_changes", []) or [])
-    first = f"knot type changed: {changes}" if changes else ""
+    # the phrase of knotmm.analysis.topology.describe_changes, without importing the analysis
+    # (half a second after the run, when a Ctrl-C would be taken for an interrupted run)
+    changes = [f"{c['from']} -> {c['to']} at t = {float(c['time']):g}"
+               for c in facts.get("knot_type_changes", []) or []]
+    first = f"knot type changed: {', '.join(changes)} tau_d" if changes else ""
     dropped, template = checks_not_made(facts)
     parts = []
     if dropped:
@@ -103,20 +105,28 @@ def knot_lines(facts: dict) -> list[str]:
 
 
 def _report(result) -> None:
-    """Print the knot-type changes, then the one-line summary (with any checks not made)."""
+    """Print the knot-type changes, then the one-line summary (with any checks not made).
+
+    The run is finished and its directory complete: a Ctrl-C now (SIGINT, SIGTERM) stops
+    only this report, with one line on stderr, and ``knotmm run`` still exits 0.
+    """
     import sys
 
     from knotmm.io.rundir import read_facts
 
     try:
-        facts = read_facts(result.directory)
-    except Exception:  # the summary must not fail for run.toml  # noqa: BLE001
-        facts = {}
-    changes, not_made = knot_lines(facts)
-    sys.stderr.flush()  # the run's own warnings first, then these lines in order
-    if changes:
-        print(changes)
-    print(result.summary() + (f"; {not_made}" if not_made else ""), flush=True)
+        try:
+            facts = read_facts(result.directory)
+        except Exception:  # the summary must not fail for run.toml  # noqa: BLE001
+            facts = {}
+        changes, not_made = knot_lines(facts)
+        sys.stderr.flush()  # the run's own warnings first, then these lines in order
+        if changes:
+            print(changes)
+        print(result.summary() + (f"; {not_made}" if not_made else ""), flush=True)
+    except KeyboardInterrupt:
+        print(f"knotmm: interrupted after the run finished: {result.directory} is complete",
+              file=sys.stderr)
 
 
 def execute(args) -> int:

@@ -78,3 +78,15 @@ def test_a_run_without_checks_prints_its_summary_alone(tmp_path, capsys):
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 1 and lines[0].startswith("simulated 2 tau_d"), lines
     assert "not made" not in lines[0] and str(out) in lines[0]
+
+
+def test_a_stop_while_reporting_a_finished_run_is_one_line_and_no_interruption(tmp_path,
+                                                                               capsys):
+    def stopped():
+        raise KeyboardInterrupt  # Ctrl-C after the run finished, while the summary is made
+
+    _report(SimpleNamespace(directory=tmp_path, summary=stopped))  # returns: exit code 0
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.splitlines() == [
+        f"knotmm: interrupted after the run finished: {tmp_path} is complete"]
