@@ -119,6 +119,22 @@ def analyze(
     """
     p = _check_int(p, "--p")
     q = _check_int(q, "--q")
+    chains = chains_of(data)
+    if len(chains) > 1:  # each chain as a run of its own, and the system (analysis.system)
+        from knotmm.analysis.system import analyze_system
+
+        if p is not None or q is not None:
+            raise ConfigError("--p/--q apply to one chain; this run has "
+                              f"{len(chains)} chains, each analysed with its own knot")
+        return analyze_system(data, chains, _analyze_one, t_from=t_from, t_to=t_to,
+                              knot_samples=knot_samples, fit=fit)
+    return _analyze_one(data, t_from=t_from, t_to=t_to, p=p, q=q, knot_samples=knot_samples,
+                        fit=fit)
+
+
+def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_samples=40,
+                 fit=True) -> AnalysisResult:
+    """:func:`analyze` of one chain (or of a whole system, for its shape and speed)."""
     notes = list(data.notes)
     times, positions = data.times, data.positions
     chains = chains_of(data)

@@ -405,7 +405,7 @@ def _rows(result: AnalysisResult) -> tuple[list[tuple[str, str]], list[str]]:
             ", ".join(_fmt(q.get(k), digits=3) for k in ("r2_rho", "r2_alpha", "r2_z")),
         ),
     ]
-    tilt = tilt_row(d)
+    tilt = tilt_row(d) if not d.get("chains") else None  # a system: its chains' business
     if tilt:
         rows.append(("torus axis vs gravity", tilt))
         rows.append(("swirl test", d["swirl_detection"]["reason"].split(":")[0]))
@@ -415,7 +415,32 @@ def _rows(result: AnalysisResult) -> tuple[list[tuple[str, str]], list[str]]:
             "swirl half-amplitude rho, z [d]",
             f"{_fmt(d['swirl_amplitude_rho'])}, {_fmt(d['swirl_amplitude_z'])}",
         ))
+    rows += _system_rows(d)
     return rows, list(d["notes"])
+
+
+def _system_rows(d: dict) -> list[tuple[str, str]]:
+    """One row per chain and per pair of a system of chains (:mod:`knotmm.analysis.system`)."""
+    rows = []
+    for c in d.get("chains") or []:
+        speed = _fmt(c.get("sedimentation_velocity"), c.get("sedimentation_velocity_uncertainty"))
+        text = (f"{c['beads']} beads, {'ring' if c['closed'] else 'open'}; V {speed}"
+                f"; Rg {_fmt(c.get('radius_of_gyration'))}; knot {_fmt(c.get('knot_type_start'))}"
+                f"; tau_swirl {_fmt(c.get('tau_swirl'), c.get('tau_swirl_uncertainty'))}")
+        rows.append((f"chain {c['id']}", text))
+    system = d.get("system") or {}
+    for pair in system.get("pairs", []):
+        rows.append((f"chains {pair['chains']}", (
+            f"centres {_fmt(pair['distance_start'])} -> {_fmt(pair['distance_end'])} d apart; "
+            f"axes {_fmt(pair['axis_angle_start_deg'], digits=3)} -> "
+            f"{_fmt(pair['axis_angle_end_deg'], digits=3)} deg")))
+    if system.get("linking_numbers"):
+        start, end = system["linking_numbers"], system.get("linking_numbers_end") or {}
+        text = ", ".join(f"{k}: {v} -> {end.get(k)}" for k, v in start.items())
+        rows.append(("linking numbers", text + (
+            f" ({len(system['linking_number_changes'])} changes)"
+            if system.get("linking_number_changes") else "")))
+    return rows
 
 
 def format_table(result: AnalysisResult) -> str:

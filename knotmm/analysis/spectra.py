@@ -225,7 +225,8 @@ def line_spectrum(
     period = 1.0 / abs(f0) if f0 != 0 else float("inf")
     period_err = f_err / f0**2 if f0 != 0 else float("inf")
     peak = SpectralPeak(f0, f_err, period, float(period_err), 1.0 / length, bead_f, halves)
-    return Spectrum(freqs, power / power.max(), peak, name)
+    top = power.max()
+    return Spectrum(freqs, power / top if top > 0 else power, peak, name)  # 0: a rigid motion
 
 
 def swirl_spectrum(times, rho, z) -> Spectrum:

@@ -86,12 +86,21 @@ def start_from_run(run_dir, t: float | None = None) -> OrbitStart:
     Raises
     ------
     ConfigError
-        A Brownian run, a run without a periodic window, or ``t`` outside the run.
+        A run of several chains or of an open one, a Brownian run, a run without a periodic
+        window, or ``t`` outside the run.
     """
     from knotmm.analysis.core import analyze
+    from knotmm.analysis.shape import chains_of
     from knotmm.io.run_data import load_run
 
     data = load_run(Path(run_dir))
+    chains = chains_of(data)
+    if len(chains) != 1 or not chains[0][1]:
+        what = (f"{len(chains)} chains" if len(chains) != 1 else "an open chain")
+        raise ConfigError(
+            f"{run_dir}: knotmm orbit handles one closed chain, and this run has {what}; "
+            f"use a run of one knot"
+        )
     cfg = run_config(data)
     if math.isfinite(float(cfg["run.peclet"])):
         raise ConfigError(

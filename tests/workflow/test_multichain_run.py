@@ -27,7 +27,7 @@ TWO_RINGS = {
         {"kind": "straight", "beads": 12, "offset": [0.0, 0.0, 4.0]},
     ],
     "run": {"duration": 3.0, "topology_check_interval": 0.0},
-    "output": {"frame_interval": 0.5, "checkpoint_interval": 1.0},
+    "output": {"frame_interval": 0.125, "checkpoint_interval": 1.0},
 }
 
 
@@ -47,7 +47,7 @@ def test_the_files_of_a_run_of_two_knots_and_a_rod(system_run):
     assert [c["id"] for c in chains] == ["A", "B", "C"]
     assert chains[0]["template_knot_type"] in ("+3_1", None)
     traj = mdtraj.load(str(system_run / "trajectory.dcd"), top=str(system_run / "topology.pdb"))
-    assert traj.n_atoms == 82 and traj.n_frames == 7
+    assert traj.n_atoms == 82 and traj.n_frames == 25
     assert [c.n_atoms for c in traj.topology.chains] == [40, 30, 12]
     bonds = {tuple(sorted((b[0].index, b[1].index))) for b in traj.topology.bonds}
     assert len(bonds) == 40 + 30 + 11
@@ -144,3 +144,21 @@ def test_bad_system_run_files_are_one_line_exit_2(tmp_path, capsys, text, messag
     assert len(err) == 1 and err[0].startswith("knotmm: error: "), err
     assert re.search(message, err[0]), err[0]
     assert not (tmp_path / "out" / "trajectory.dcd").exists()
+
+
+def test_orbit_refuses_a_run_of_several_chains_in_one_line(system_run, capsys):
+    assert main(["orbit", str(system_run)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "handles one closed chain" in err[0] and "3 chains" in err[0]
+
+
+def test_the_analysis_of_the_system_names_each_chain(system_run):
+    from knotmm.analysis.core import analyze_run
+
+    d = analyze_run(system_run, plots=False, knot_samples=0).to_dict()
+    assert [c["id"] for c in d["chains"]] == ["A", "B", "C"]
+    assert [c["closed"] for c in d["chains"]] == [True, True, False]
+    assert len(d["system"]["pairs"]) == 3
+    assert d["system"]["linking_numbers"] == {"A-B": 0}
+    for c in d["chains"]:
+        assert c["sedimentation_velocity"] > 0
