@@ -1,8 +1,8 @@
 """Planning a sweep: its points, the seeds of replicas, and what to do with each point.
 
 * :func:`expand` turns ``{key: [values...]}`` into points (``"grid"`` or ``"zip"``);
-* :func:`replica_seeds` derives the seeds of ``seeds = K`` replicas with
-  ``numpy.random.SeedSequence.spawn``, so a replica's seed does not depend on K;
+* :func:`replica_seeds` (:mod:`knotmm.replicas`) derives the seeds of ``seeds = K``
+  replicas with ``numpy.random.SeedSequence.spawn``, so a replica's seed does not depend on K;
 * :func:`point_name` names a point's directory from its swept values;
 * :func:`plan_point` decides, from a point's run directory, whether to skip it (finished,
   same parameters), only analyse it, resume it from its checkpoint, or run it from the start.
@@ -20,8 +20,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from knotmm.config import RunConfig, read_toml, resolve_stepping
 from knotmm.errors import ConfigError
 from knotmm.io.rundir import (
@@ -32,6 +30,7 @@ from knotmm.io.rundir import (
     STATUS_RUNNING,
     run_status,
 )
+from knotmm.replicas import replica_seeds  # the one owner: sweeps and replicated runs
 from knotmm.sweep.summary import summary_values, time_reached
 
 __all__ = [
@@ -112,21 +111,6 @@ def expand(values: Mapping[str, Sequence[Any]], mode: str = "grid") -> list[dict
             )
         return [dict(zip(keys, combo, strict=True)) for combo in zip(*lists, strict=True)]
     raise ConfigError(f'[sweep] mode = {mode!r}: expected "grid" or "zip"')
-
-
-def replica_seeds(base_seed: int, count: int) -> list[int]:
-    """Seeds of ``count`` replicas, derived reproducibly from ``base_seed``.
-
-    Replica k gets the first 32-bit word of ``numpy.random.SeedSequence(base_seed).spawn(count)[k]``
-    (spawn key ``(k,)``), so its seed does not depend on ``count``: adding replicas keeps the
-    seeds of the existing ones.
-
-    Returns
-    -------
-    list of int, length count, each in [0, 2**32)
-    """
-    children = np.random.SeedSequence(int(base_seed)).spawn(int(count))
-    return [int(c.generate_state(1, dtype=np.uint32)[0]) for c in children]
 
 
 def format_value(value: Any) -> str:
