@@ -19,6 +19,7 @@ from knotmm.knots.identify import worker_ready
 
 __all__ = [
     "FINISH_PATIENCE_S",
+    "ChainsIdentifier",
     "LinkingWatch",
     "TemplateKnotCheck",
     "checks_not_made",
@@ -86,16 +87,24 @@ def knot_watch(sim, cfg, facts, counters, resuming):
 
     if not (cfg["run.topology_check_interval"] > 0 and topoly_available()):
         return None
-    if not sim.layout.is_single_ring:  # the watch names the knot of one ring
-        facts["knot_type_watch"] = ("not made during the run: the knot-type watch follows one "
-                                    "closed chain; each chain's type at the start is recorded")
-        return None
+    identify = None
+    if not sim.layout.is_single_ring:  # several chains: the type of each ring, in order
+        if not any(sim.layout.closed):
+            facts["knot_type_watch"] = "not made: an open chain has no knot type"
+            return None
+        from knotmm.knots.worker import IsolatedKnotIdentifier
+
+        identify = ChainsIdentifier(IsolatedKnotIdentifier(chiral=True), sim.layout)
+        identify.start()
+        facts["knot_type_watch"] = ("the knot type of each closed chain, in chain order "
+                                    "(\"+3_1, -3_1\"): a change of any one is a change")
     expected = facts.get("knot_type") if resuming else None
     watch = KnotTypeWatch(
         cfg["run.topology_check_interval"],
         expected=expected,
         on_change=cfg["run.on_topology_change"],
         first_index=max(1, counters.get("checks", 0)),
+        identify=identify,
     )
     if expected is None:  # identified in the worker beside the run, not before it
         watch.identify_start(sim.positions)
@@ -268,3 +277,54 @@ def record_linking(facts: dict, watch: LinkingWatch) -> None:
     changes += [{"time": t, "chains": pair, "from": int(a) if a is not None else None,
                  "to": int(b)} for t, pair, a, b in watch.changes]
     facts["linking_number_changes"] = changes
+
+
+class ChainsIdentifier:
+    """The knot identifier of a system: each closed chain identified on its own (in the one
+    knot worker), the names joined in chain order (``"+3_1, -3_1"``).
+
+    Wraps an identifier with ``submit``/``ready``/``start``/``close``
+    (:class:`knotmm.knots.worker.IsolatedKnotIdentifier`); a chain the worker cannot name
+    makes the joined answer None (not identified) or ``"unknown"``.
+    """
+
+    def __init__(self, identify, layout):
+        self._identify = identify
+        self._rings = [sl for sl, ring in zip(layout.slices(), layout.closed, strict=True)
+                       if ring]
+
+    def start(self) -> None:
+        self._identify.start()
+
+    @property
+    def ready(self) -> bool:
+        return bool(getattr(self._identify, "ready", True))
+
+    def submit(self, positions):
+        return _JoinedHandle([self._identify.submit(positions[sl]) for sl in self._rings])
+
+    def __call__(self, positions):
+        return self.submit(positions).result()
+
+    def close(self) -> None:
+        closer = getattr(self._identify, "close", None)
+        if closer is not None:
+            closer()
+
+
+class _JoinedHandle:
+    """The identifications of several chains as one: done when all are."""
+
+    def __init__(self, handles):
+        self._handles = handles
+
+    def done(self) -> bool:
+        return all(h.done() for h in self._handles)
+
+    def result(self) -> str | None:
+        names = [h.result() for h in self._handles]
+        if any(n is None for n in names):
+            return None
+        if any(n == "unknown" for n in names):
+            return "unknown"
+        return ", ".join(names)

@@ -162,3 +162,39 @@ def test_the_analysis_of_the_system_names_each_chain(system_run):
     assert d["system"]["linking_numbers"] == {"A-B": 0}
     for c in d["chains"]:
         assert c["sedimentation_velocity"] > 0
+
+
+def test_the_knot_watch_names_each_ring_in_chain_order(tmp_path):
+    pytest.importorskip("topoly")
+    settings = {**TWO_RINGS, "run": {"duration": 2.0, "topology_check_interval": 1.0}}
+    run(RunConfig.from_dict(settings), directory=tmp_path / "w", progress=False,
+        wait_for_checks=True)
+    facts = read_facts(tmp_path / "w")
+    # ring A is the right-handed trefoil, ring B its mirror image; the rod has no type
+    assert facts["knot_type_start"] == "+3_1, -3_1"
+    assert facts["knot_type_checks"] == 2 and facts["knot_type_changes"] == []
+
+
+def test_a_change_of_one_ring_is_a_change_of_the_system():
+    from knotmm.engine.knot_checks import ChainsIdentifier
+    from knotmm.engine.reporters import KnotTypeWatch
+
+    class Fake:  # names a ring by its first bead's x: > 0 "+3_1", else "0_1"
+        def submit(self, x):
+            value = "+3_1" if x[0, 0] > 0 else "0_1"
+            return types.SimpleNamespace(done=lambda: True, result=lambda: value)
+
+        def start(self):
+            pass
+
+    layout = ChainLayout((4, 3, 5), (True, False, True))
+    watch = KnotTypeWatch(1.0, identify=ChainsIdentifier(Fake(), layout))
+    x = np.ones((12, 3))
+    sim = types.SimpleNamespace(positions=x, time=1.0, currentStep=1)
+    watch.report(sim, None)
+    x2 = x.copy()
+    x2[7, 0] = -1.0  # the third chain (beads 7-11), the second ring
+    sim.positions, sim.time = x2, 2.0
+    watch.report(sim, None)
+    watch.collect(wait=True)
+    assert watch.changes == [(2.0, "+3_1, +3_1", "+3_1, 0_1")]
