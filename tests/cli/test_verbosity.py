@@ -72,7 +72,7 @@ def test_quiet_prints_no_summary(capsys):
 
 
 def test_quiet_keeps_errors(capsys):
-    assert main(["-q", "template", "torus:2,4"]) == 2
+    assert main(["-q", "template", "torus:2,5", "--beads", "12"]) == 2
     assert capsys.readouterr().err.startswith("knotmm: error: ")
 
 
