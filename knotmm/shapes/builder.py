@@ -42,9 +42,9 @@ from knotmm.shapes.checks import (
     closest_nonbonded,
     submit_knot_check,
 )
-from knotmm.shapes.curves import braid_curve, torus_curve
+from knotmm.shapes.curves import braid_curve, circle_curve, torus_curve
 from knotmm.shapes.geometry import TooFewBeadsError, mirror_image, place_on_curve
-from knotmm.shapes.knotinfo import TORUS_NAMES, named_knot_word, symmetry_type
+from knotmm.shapes.knotinfo import TORUS_NAMES, named_knot_word, resolve_name, symmetry_type
 from knotmm.shapes.resources import check_memory
 from knotmm.shapes.systems import build_chains, build_link, build_open, is_link, is_open
 from knotmm.shapes.template import PendingKnotCheck, Template
@@ -122,12 +122,18 @@ def _spec_from_config(cfg, names=RUN_FILE_KEYS) -> _Spec:
                     "knot.name is not set: knot.kind = 'knotinfo' needs a knot name, e.g. "
                     "name = '5_2'"
                 )
-            name, word, source = named_knot_word(cfg["knot.name"], names["name"])
-            word = check_word(word, names)
-            label = f"{name} (braid {list(word)}, {source})"
-            expected, symmetry = name, symmetry_type(name)
-            resolved = {"knot.name": name}
-        curve = braid_curve(word, check_positive(a, names["minor_radius"]))
+            if resolve_name(str(cfg["knot.name"])) == "0_1":  # the unknot: a flat circle
+                label, expected, symmetry = "0_1 (circle)", "0_1", symmetry_type("0_1")
+                resolved = {"knot.name": "0_1"}
+                curve = circle_curve()
+            else:
+                name, word, source = named_knot_word(cfg["knot.name"], names["name"])
+                word = check_word(word, names)
+                label = f"{name} (braid {list(word)}, {source})"
+                expected, symmetry = name, symmetry_type(name)
+                resolved = {"knot.name": name}
+        if kind == "braid" or expected != "0_1":
+            curve = braid_curve(word, check_positive(a, names["minor_radius"]))
     else:
         raise TemplateError(f"knot.kind={kind!r}: expected torus, braid, knotinfo or file")
 

@@ -28,6 +28,7 @@ __all__ = [
     "TubeCurve",
     "braid_curve",
     "braid_cycles",
+    "circle_curve",
     "equal_chord",
     "torus_curve",
 ]
@@ -109,6 +110,16 @@ def torus_curve(p: int, q: int, a: float) -> TubeCurve:
         return a * s, a * c, a * k * c, -a * k * s
 
     return TubeCurve(offsets, p, -a, f"T({p},{q})")
+
+
+def circle_curve() -> TubeCurve:
+    """The unknot: the horizontal circle of radius r0 itself (no offsets)."""
+
+    def offsets(t):
+        zero = np.zeros_like(np.asarray(t, dtype=np.float64))
+        return zero, zero, zero, zero
+
+    return TubeCurve(offsets, 1, 0.0, "circle")
 
 
 def _smooth_half_turn(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

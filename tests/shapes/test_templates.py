@@ -300,7 +300,6 @@ def test_named_knot_accepts_spellings():
         ({"kind": "braid", "word": [1, 0, 1]}, r"generator 0"),
         ({"kind": "braid", "word": [2, 2, 2]}, r"generator 1 never appears"),
         ({"kind": "knotinfo"}, r"knot\.name is not set"),
-        ({"kind": "knotinfo", "name": "0_1"}, r"unknot"),
         ({"kind": "knotinfo", "name": "frobnicate"}, r"knot\.name='frobnicate'"),
         ({"kind": "file"}, r"knot\.path is not set"),
         (
@@ -540,3 +539,17 @@ def test_closed_file_gives_no_ring_note(tmp_path):
     write_pdb(path, torus_knot(2, 3, 60))
     tpl = build_template(cfg(kind="file", path=str(path)))
     assert not any("bond" in n and "ring" in n for n in tpl.notes)
+
+
+def test_the_unknot_is_a_flat_circle_of_equal_chords():
+    from knotmm.config import RunConfig
+    from knotmm.shapes.builder import build_template
+
+    for name in ("0_1", "unknot"):
+        tpl = build_template(RunConfig.from_dict({"knot": {"kind": "knotinfo", "name": name,
+                                                          "beads": 48}}), identify="skip")
+        x = tpl.positions
+        radius = 0.6 / (2 * np.sin(np.pi / 48))  # the regular 48-gon with sides l0
+        np.testing.assert_allclose(np.linalg.norm(x[:, :2], axis=1), radius, rtol=1e-9)
+        np.testing.assert_allclose(x[:, 2], 0.0, atol=1e-12)
+        assert tpl.resolved["knot.name"] == "0_1"
