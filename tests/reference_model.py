@@ -210,6 +210,23 @@ def rpy_dense(x):
     return m
 
 
+def gauss_linking(a, b, sub=6):
+    """Gauss's linking integral of two closed polygons by the midpoint rule, every bond cut
+    into ``sub`` pieces: (1/4 pi) sum (da x db) . (ra - rb) / |ra - rb|^3."""
+    def pieces(x):
+        nxt = np.roll(x, -1, axis=0)
+        t = (np.arange(sub) + 0.5) / sub
+        pts = x[:, None] + t[None, :, None] * (nxt - x)[:, None]
+        return pts.reshape(-1, 3), np.repeat((nxt - x) / sub, sub, axis=0)
+
+    pa, da = pieces(np.asarray(a, float))
+    pb, db = pieces(np.asarray(b, float))
+    r = pa[:, None] - pb[None]
+    cross = np.cross(da[:, None], db[None])
+    return float(np.sum(np.einsum("ijk,ijk->ij", cross, r)
+                        / np.linalg.norm(r, axis=-1) ** 3) / (4 * np.pi))
+
+
 # -- configurations ---------------------------------------------------------------------------
 def circle(n, bond=0.6, z=0.0):
     """A planar regular polygon of n beads with bonds ``bond``."""

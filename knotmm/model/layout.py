@@ -70,7 +70,7 @@ class ChainLayout:
             minimum = 3 if ring else 2
             if n < minimum:
                 raise ValueError(
-                    f"chain {CHAIN_IDS[c]}: {n} beads; a {'closed' if ring else 'open'} chain "
+                    f"chain {CHAIN_IDS[c]}: {n} beads; {'a closed' if ring else 'an open'} chain "
                     f"needs at least {minimum}"
                 )
             checked.append(int(n))

@@ -61,15 +61,11 @@ def bead_topology(n_beads: int | ChainLayout, closed: bool = True) -> openmm.app
     """
     if isinstance(n_beads, ChainLayout):
         return _layout_topology(n_beads)
-    if isinstance(n_beads, bool) or not isinstance(n_beads, (int, np.integer)):
-        raise ValueError(f"n_beads={n_beads!r}: expected an integer")
-    minimum = 3 if closed else 2
-    if n_beads < minimum:
-        raise ValueError(
-            f"n_beads={n_beads}: a {'closed' if closed else 'open'} chain needs "
-            f"at least {minimum} beads"
-        )
-    return _layout_topology(ChainLayout((int(n_beads),), (bool(closed),)))
+    try:  # the layout checks the count
+        layout = ChainLayout((n_beads,), (bool(closed),))
+    except ValueError as exc:
+        raise ValueError(f"n_beads={n_beads!r}: {str(exc).split(': ', 1)[-1]}") from None
+    return _layout_topology(layout)
 
 
 def _layout_topology(layout: ChainLayout) -> openmm.app.Topology:
