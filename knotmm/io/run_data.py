@@ -4,13 +4,17 @@ A run directory written by ``knotmm run`` holds ``trajectory.dcd`` (Angstrom, 1 
 ``topology.pdb`` (one residue ``BEA`` per bead, CONECT records for every bond) and
 ``run.toml`` (the resolved run file). :func:`load_run` reads such a directory, or any DCD
 with a matching PDB topology, and returns a :class:`RunData` with times in tau_d and
-positions in d.
+positions in d. :meth:`RunData.to_mdtraj` goes back to an ``mdtraj.Trajectory`` (for
+viewers such as nglview or py3Dmol, and mdtraj's own analyses).
 
 Examples
 --------
 >>> data = load_run("runs/trefoil")                                   # doctest: +SKIP
+>>> data                                                              # doctest: +SKIP
+RunData(runs/trefoil: 401 frames, t = 0 to 200 tau_d every 0.5, 90 beads, 1 closed chain)
 >>> data.positions.shape, data.frame_interval                         # doctest: +SKIP
 ((401, 90, 3), 0.5)
+>>> traj = data.to_mdtraj()   # as in the files, centre of mass at 0    # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -27,14 +31,18 @@ from knotmm.config import read_toml
 from knotmm.errors import ConfigError, TrajectoryFileError
 from knotmm.io.dcd import read_dcd
 from knotmm.io.rundir import RUN_FILE, TOPOLOGY_FILE, TRAJECTORY_FILE
-from knotmm.units import angstrom_to_d
+from knotmm.units import ANGSTROM_PER_D, PS_PER_TAU, angstrom_to_d
 
 __all__ = ["RunData", "load_run", "config_value"]
 
 logger = logging.getLogger(__name__)
 
 
-@dataclass
+#: nm per Angstrom (mdtraj keeps coordinates in nm and writes Angstrom to DCD and PDB files).
+_NM_PER_ANGSTROM = 0.1
+
+
+@dataclass(repr=False)
 class RunData:
     """A trajectory in model units, with what is known about the run that made it.
 
@@ -99,6 +107,91 @@ class RunData:
         times = np.arange(x.shape[0]) * float(frame_interval)
         return cls(
             times, x, np.asarray(bonds, dtype=int), dict(config or {}), float(frame_interval)
+        )
+
+    def chains(self) -> list[tuple[int, int, bool]]:
+        """The chains as the bonds give them: ``(first bead, bead count, closed)`` each.
+
+        A chain is a run of consecutive beads bonded ``i - (i + 1)``; it is closed when its
+        last bead is bonded to its first. (:func:`knotmm.analysis.shape.chains_of` also reads
+        the run file's ``knot.closed``.)
+        """
+        pairs = {tuple(sorted(map(int, b))) for b in np.asarray(self.bonds).reshape(-1, 2)}
+        out: list[tuple[int, int, bool]] = []
+        start = 0
+        for i in range(self.n_beads):
+            if i == self.n_beads - 1 or (i, i + 1) not in pairs:
+                out.append((start, i + 1 - start, i - start >= 2 and (start, i) in pairs))
+                start = i + 1
+        return out
+
+    def __repr__(self) -> str:
+        """One line: the run, its frames and time span in tau_d, beads and chains."""
+        where = self.directory
+        traj = self.trajectory
+        if traj is not None and (where is None or traj.name != TRAJECTORY_FILE):
+            where = traj  # a bare DCD: name the file
+        what = "in-memory trajectory" if where is None else str(where)
+        if self.n_frames:
+            span = (f"t = {float(self.times[0]):g} to {float(self.times[-1]):g} tau_d "
+                    f"every {self.frame_interval:g}")
+        else:
+            span = "no time span"
+        chains = self.chains() if self.n_beads else []
+        closed = sum(c[2] for c in chains)
+        if len(chains) == 1:
+            kind = "1 closed chain" if closed else "1 open chain"
+        else:
+            kind = f"{len(chains)} chains ({closed} closed)"
+        frames = "1 frame" if self.n_frames == 1 else f"{self.n_frames} frames"
+        return f"RunData({what}: {frames}, {span}, {self.n_beads} beads, {kind})"
+
+    def to_mdtraj(self, center: bool = True):
+        """The run as an ``mdtraj.Trajectory``, in the units of its DCD and PDB files.
+
+        The coordinates are those of ``trajectory.dcd``: 10 Angstrom per bead diameter
+        (:data:`knotmm.units.ANGSTROM_PER_D`), held by mdtraj in nm as always (so
+        ``traj.xyz`` reads 1 nm per d and ``traj.save_dcd`` writes the run's Angstrom).
+        Frame times are in ps, 1 ps per tau_d (:data:`knotmm.units.PS_PER_TAU`). The
+        topology is laid out as ``topology.pdb`` is: one chain per chain of beads (``A``,
+        ``B``, ...), one residue ``BEA`` and one atom ``B`` (carbon) per bead, and exactly the
+        bonds listed in :attr:`RunData.bonds`.
+
+        Parameters
+        ----------
+        center : bool, optional
+            Shift each frame so that the centre of mass (all beads weigh the same) is at
+            the origin: the sedimenting chain then stays in view. False keeps the positions
+            as they are (the chain falls along -z).
+
+        Returns
+        -------
+        mdtraj.Trajectory
+            ``n_frames`` frames of ``n_beads`` atoms; ``xyz`` has shape
+            (n_frames, n_beads, 3), in nm (= d), float32; ``time`` in ps (= tau_d).
+        """
+        import mdtraj  # noqa: PLC0415 - heavy import kept out of module import
+
+        from knotmm.model.layout import CHAIN_IDS  # noqa: PLC0415
+        from knotmm.model.topology import BEAD_ATOM, BEAD_RESIDUE  # noqa: PLC0415
+
+        x = np.asarray(self.positions, dtype=np.float64)
+        if center:
+            x = x - x.mean(axis=1, keepdims=True)
+        top = mdtraj.Topology()
+        carbon = mdtraj.element.carbon
+        atoms = []
+        for c, (_first, count, _closed) in enumerate(self.chains()):
+            chain = top.add_chain(CHAIN_IDS[c] if c < len(CHAIN_IDS) else None)
+            for k in range(count):
+                residue = top.add_residue(BEAD_RESIDUE, chain, resSeq=k + 1)
+                atoms.append(top.add_atom(BEAD_ATOM, carbon, residue))
+        pairs = sorted({tuple(sorted(map(int, b))) for b in np.asarray(self.bonds).reshape(-1, 2)})
+        for i, j in pairs:
+            top.add_bond(atoms[i], atoms[j])
+        xyz_nm = x * ANGSTROM_PER_D * _NM_PER_ANGSTROM
+        return mdtraj.Trajectory(
+            xyz_nm, top, time=np.asarray(self.times, dtype=np.float64) * PS_PER_TAU
         )
 
 
