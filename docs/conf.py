@@ -58,25 +58,6 @@ napoleon_use_rtype = False
 napoleon_preprocess_types = True
 
 
-def _list_lazy_names(module_name: str) -> None:
-    """Let ``dir()`` list a package's lazily imported names (PEP 562 ``__getattr__``).
-
-    autodoc finds a module's members through ``dir()``; names that ``__getattr__`` imports on
-    first use (``knotmm.analysis.plot_*``, ``knotmm.orbit``'s) are in ``__all__`` only.
-    """
-    import importlib
-
-    module = importlib.import_module(module_name)
-    listed = set(dir(module))
-    missing = [n for n in getattr(module, "__all__", ()) if n not in listed]
-    if missing and "__dir__" not in vars(module):
-        names = sorted(listed | set(missing))
-        module.__dir__ = lambda: names
-
-
-for _name in ("knotmm", "knotmm.analysis", "knotmm.orbit"):
-    _list_lazy_names(_name)
-
 # -- MyST and myst-nb -----------------------------------------------------------------------
 myst_enable_extensions = ["dollarmath", "colon_fence"]
 myst_heading_anchors = 3

@@ -87,3 +87,8 @@ def __getattr__(name: str):
 
         return getattr(plots, name)
     raise AttributeError(f"module 'knotmm.analysis' has no attribute {name!r}")
+
+
+def __dir__():
+    """The module's names with the plot functions imported on first use."""
+    return sorted(set(globals()) | set(_PLOTS))

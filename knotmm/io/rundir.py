@@ -246,6 +246,8 @@ def write_run_toml(directory, cfg, facts: dict[str, Any]) -> None:
     facts : dict
         The ``[knotmm]`` table; None values are left out.
 
+    Notes
+    -----
     If the atomic write fails (a full disk has no room for the temporary copy), the file is
     rewritten in place, so that a run never leaves ``status = "running"`` behind when it
     can help it; :class:`OutputError` if that fails too.

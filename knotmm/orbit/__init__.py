@@ -45,3 +45,8 @@ def __getattr__(name: str):
     if name in _OWNERS:
         return getattr(importlib.import_module(_OWNERS[name]), name)
     raise AttributeError(f"module 'knotmm.orbit' has no attribute {name!r}")
+
+
+def __dir__():
+    """The module's names with those imported on first use."""
+    return sorted(set(globals()) | set(_OWNERS))

@@ -307,6 +307,12 @@ def _ring_closure_notes(structure, cfg, allow_open_chain: bool) -> list[str]:
 def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now") -> Template:
     """Build and check the starting shape a run file asks for.
 
+    A run file's ``[[chains]]`` (several chains in one fluid), a link (a torus link, a
+    closed braid of several components, a LinkInfo name) and an open filament
+    (``knot.closed = false``; kinds ``straight``, ``arc``, ``helix``) are built by
+    :mod:`knotmm.shapes.systems`; the returned template then has a ``layout`` of its
+    chains and, for several chains, their own templates as ``parts``.
+
     Parameters
     ----------
     cfg : RunConfig
@@ -324,11 +330,6 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         template to the worker and returns: :meth:`Template.settle_knot_type` judges the
         answer once it is back, and a wrong knot type raises there; ``"skip"``: not at all.
 
-    A run file's ``[[chains]]`` (several chains in one fluid), a link (a torus link, a
-    closed braid of several components, a LinkInfo name) and an open filament
-    (``knot.closed = false``; kinds ``straight``, ``arc``, ``helix``) are built by
-    :mod:`knotmm.shapes.systems`; the returned template then has a ``layout`` of its
-    chains and, for several chains, their own templates as ``parts``.
 
     Returns
     -------
@@ -341,7 +342,7 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
     ------
     TemplateError
         With one line naming the run-file key to change: an impossible specification (a
-        link, the unknot, an unknown name), too few beads, beads inside the steric range
+        unknown name), too few beads, beads inside the steric range
         (closer than ``lj_sigma`` for a file or an explicit ``knot.major_radius``), bonds
         past ``run.max_bond_length``, a template of the wrong knot type, or a file whose
         bonds leave the chain open.
