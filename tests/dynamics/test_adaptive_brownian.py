@@ -75,7 +75,10 @@ def test_dimer_samples_boltzmann_despite_frequent_rejections():
     mean_err, var_err = _blocked(r)
     assert abs(r.mean() - mean) < 4 * mean_err, (r.mean(), mean, mean_err)
     assert abs(r.var() - var) < 4 * var_err, (r.var(), var, var_err)
-    assert abs(r.var() / var - 1) < 0.02
+    # 100 tau_d give the variance to about 2.5 % (one standard error, blocked): a fixed 2 %
+    # bound here held for one seed by chance (seeds 3, 4, 5: +3.4, +0.3, +2.5 % with numpy
+    # 2.4 and numba 0.68); the 4-sigma bound above is the test
+    assert var_err / var < 0.04
 
 
 def test_the_dimer_test_sees_the_bias_of_fresh_noise_after_rejections():
