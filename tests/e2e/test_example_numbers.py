@@ -1,0 +1,54 @@
+"""The headline numbers of an example README against a fresh run (where that is cheap).
+
+examples/ensemble_N60/README.md: replica 0 (its run.seed is in the table) is run again from
+the example's sweep.toml and analysed; its row of the README table must come out in the
+digits the README prints. A change of the engine, the template or the analysis that moves
+them makes this fail, and the README is then rerun and updated (issue 24).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from knotmm.analysis.core import analyze_run
+from knotmm.config import RunConfig, read_toml
+from knotmm.workflow import run
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "ensemble_N60"
+
+
+def _row(readme: str, replica: int) -> dict[str, str]:
+    lines = [ln for ln in readme.splitlines() if ln.startswith("|")]
+    header = [c.strip() for c in lines[0].strip("|").split("|")]
+    for line in lines[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if cells[0] == str(replica):
+            return dict(zip(header, cells, strict=True))
+    raise AssertionError(f"no row for replica {replica} in the README table")
+
+
+def _digits(text: str) -> int:
+    return len(text.split(".")[1]) if "." in text else 0
+
+
+def test_ensemble_n60_replica_0_reproduces_its_readme_row(tmp_path):
+    readme = (EXAMPLE / "README.md").read_text()
+    row = _row(readme, 0)
+    data = read_toml(EXAMPLE / "sweep.toml")
+    data.pop("sweep")
+    data["run"]["seed"] = int(row["run.seed"])
+    cfg = RunConfig.from_dict(data)
+    run(cfg, directory=tmp_path / "r0", progress=False)
+    d = analyze_run(tmp_path / "r0", plots=False, knot_samples=0).to_dict()
+    for column, key in (("tau_swirl/tau_sed", "tau_swirl_over_tau_sed"),
+                        ("tau_rot/tau_sed", "tau_rot_over_tau_sed"),
+                        ("tau_swirl", "tau_swirl"), ("V", "sedimentation_velocity"),
+                        ("rho0", "major_radius")):
+        printed = row[column]
+        assert d[key] is not None, column
+        assert f"{d[key]:.{_digits(printed)}f}" == printed, (column, d[key], printed)
+    start, end = (float(v) for v in re.findall(r"[\d.]+", row["window (tau_d)"]))
+    assert d["window"][0] == pytest.approx(start) and d["window"][1] == pytest.approx(end)
