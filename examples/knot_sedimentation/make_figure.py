@@ -1,0 +1,272 @@
+"""Table and figure of the knot-sedimentation example: V / V(unknot) against the ACN.
+
+Usage::
+
+    python examples/knot_sedimentation/make_figure.py [LABEL=]DIR [[LABEL=]DIR ...] [--out DIR]
+
+Each ``DIR`` is a sweep directory analysed with ``knotmm analyze DIR`` (or a copy of its
+``replicas.json`` and ``summary.csv``) whose points differ in ``knot.name`` (points that also
+differ in other swept keys form one set per combination) and which holds the unknot ``0_1``.
+Per set and knot type it reads from ``replicas.json`` the mean and
+standard error over the replicas of the sedimentation speed ``V``, the average crossing
+number (ACN) of the sedimenting shape, ``Rg``, ``Rg_perp``, the asphericity and the torus
+fraction; ``V / V0`` carries both standard errors (the unknot's own point: 1, with V0's
+relative error as its bar); from ``summary.csv`` the knot type at the start and end of
+every replica. It writes ``OUT/table.csv``, ``OUT/fits.csv`` and ``OUT/v_over_v0_vs_acn.png``
+(default OUT: ``results`` beside this script): the straight-line fits of ``V / V0`` against
+the ACN and against the minimal crossing number, over all knot types and over the knotted
+ones only (unweighted least squares, parameter errors from the scatter).
+
+Units: lengths in d, speeds in d / tau_d; ACN, ratios and fractions are dimensionless.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+
+#: The knot types of the study in table order, with their minimal crossing numbers.
+KNOTS = {"0_1": 0, "3_1": 3, "4_1": 4, "5_1": 5, "5_2": 5, "6_1": 6, "7_1": 7}
+#: Per-knot quantities taken from replicas.json (analysis.json keys).
+QUANTITIES = (
+    "sedimentation_velocity",
+    "average_crossing_number",
+    "radius_of_gyration",
+    "radius_of_gyration_perp",
+    "asphericity",
+    "torus_fraction",
+    "torus_fraction_window",
+)
+COLUMNS = (
+    "set", "knot", "crossing_number", "replicas", "V", "V_se", "V_over_V0", "V_over_V0_se",
+    "ACN", "ACN_se", "Rg", "Rg_se", "Rg_perp", "Rg_perp_se", "asphericity", "asphericity_se",
+    "torus_fraction", "torus_fraction_window", "knot_changed_replicas", "knot_types_end",
+)
+
+
+def _fail(message: str) -> None:
+    print(f"make_figure.py: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def knot_of(point: str) -> str:
+    """The ``knot.name`` of a point name such as ``knot.name=3_1`` (no replica part)."""
+    match = re.search(r"knot\.name=([^,]+)", point)
+    if match is None:
+        _fail(f"point {point!r} has no knot.name: the sweep must vary knot.name")
+    return match.group(1)
+
+
+def rest_of(point: str) -> str:
+    """The other swept values of a point name (``knot.name`` and ``replica`` left out)."""
+    return ",".join(part for part in point.split(",")
+                    if not part.startswith(("knot.name=", "replica=")))
+
+
+def ratio(v, v_se, v0, v0_se):
+    """``r = V / V0`` and its standard error, the relative errors added in quadrature.
+
+    Parameters
+    ----------
+    v, v_se, v0, v0_se : float
+        Mean speed and standard error of a knot and of the unknot, d / tau_d.
+
+    Returns
+    -------
+    (float, float)
+        ``V / V0`` and ``|V / V0| sqrt((v_se / v)^2 + (v0_se / v0)^2)`` (dimensionless).
+    """
+    r = v / v0
+    return r, abs(r) * math.hypot(v_se / v, v0_se / v0)
+
+
+def linear_fit(x, y, y_se=None):
+    """Straight line ``y = a + b x`` by least squares, with its quality.
+
+    Parameters
+    ----------
+    x, y : array_like, shape (n,)
+    y_se : array_like, shape (n,), optional
+        Standard errors of ``y``: weights ``1 / y_se`` (``numpy.polyfit``); the parameter
+        errors are then the unscaled covariance. Without them, unweighted, and the
+        covariance is scaled by the residuals (errors NaN for 3 points or fewer).
+
+    Returns
+    -------
+    dict
+        ``slope``, ``slope_se``, ``intercept``, ``intercept_se``, ``r2`` (of the unweighted
+        residuals about the fitted line), ``n``.
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if len(x) < 2:
+        return {"slope": math.nan, "slope_se": math.nan, "intercept": math.nan,
+                "intercept_se": math.nan, "r2": math.nan, "n": int(len(x))}
+    if y_se is not None:
+        w = 1.0 / np.maximum(np.asarray(y_se, float), 1e-12)
+        coef, cov = np.polyfit(x, y, 1, w=w, cov="unscaled")
+    elif len(x) > 3:
+        coef, cov = np.polyfit(x, y, 1, cov=True)
+    else:  # too few points to scale the covariance by the residuals
+        coef, cov = np.polyfit(x, y, 1), np.full((2, 2), math.nan)
+    resid = y - np.polyval(coef, x)
+    r2 = 1.0 - float(resid @ resid) / float(((y - y.mean()) ** 2).sum())
+    return {"slope": float(coef[0]), "slope_se": float(math.sqrt(cov[0, 0])),
+            "intercept": float(coef[1]), "intercept_se": float(math.sqrt(cov[1, 1])),
+            "r2": r2, "n": int(len(x))}
+
+
+def knot_changes(summary: Path) -> dict[tuple[str, str], tuple[int, str]]:
+    """Per (other swept values, knot): replicas whose knot type changed, and the end types."""
+    out: dict[tuple[str, str], tuple[int, set]] = {}
+    if not summary.is_file():
+        return {}
+    with summary.open(newline="") as fh:
+        for row in csv.DictReader(fh):
+            key = (rest_of(row["point"]), knot_of(row["point"]))
+            changed = bool(row.get("knot_type_changed_at")) or (
+                row.get("knot_type_start", "") != row.get("knot_type_end", ""))
+            n, ends = out.get(key, (0, set()))
+            ends.add(row.get("knot_type_end") or "?")
+            out[key] = (n + int(changed), ends)
+    return {k: (n, ";".join(sorted(e))) for k, (n, e) in out.items()}
+
+
+def read_set(label: str, directory: Path) -> list[dict]:
+    """The table rows of a sweep directory (or a copy of its two files).
+
+    Points that differ in other swept keys than ``knot.name`` (the full design's N, Pe,
+    repulsion) form separate sets, labelled ``LABEL REST``; each needs its unknot.
+    """
+    path = directory / "replicas.json"
+    if not path.is_file():
+        _fail(f"{path} not found: run `knotmm analyze {directory}` first")
+    points = json.loads(path.read_text())["points"]
+    groups: dict[str, dict] = {}
+    for name, p in points.items():
+        groups.setdefault(rest_of(name), {})[knot_of(name)] = p["statistics"]
+    changes = knot_changes(directory / "summary.csv")
+    rows = []
+    for rest, stats in groups.items():
+        name = f"{label} {rest}".strip()
+        if "0_1" not in stats:
+            _fail(f"{directory}: no unknot point (knot.name=0_1) for {rest or 'the sweep'}: "
+                  "it is the reference V0")
+        rows += _rows(name, stats, {k: v for (r, k), v in changes.items() if r == rest})
+    return rows
+
+
+def _rows(label: str, stats: dict, changes: dict) -> list[dict]:
+    def get(knot, key):
+        s = stats[knot].get(key) or {}
+        return s.get("mean", math.nan), s.get("std_error") or math.nan, s.get("n", 0)
+
+    v0, v0_se, _ = get("0_1", "sedimentation_velocity")
+    rows = []
+    for knot in sorted(stats, key=lambda k: (KNOTS.get(k, 99), k)):
+        v, v_se, n = get(knot, "sedimentation_velocity")
+        r, r_se = ratio(v, v_se, v0, v0_se)
+        if knot == "0_1":  # the reference: 1 exactly; its bar is V0's relative error
+            r, r_se = 1.0, v0_se / v0
+        row = {"set": label, "knot": knot, "crossing_number": KNOTS.get(knot, ""),
+               "replicas": n, "V": v, "V_se": v_se, "V_over_V0": r, "V_over_V0_se": r_se}
+        for key, col in (("average_crossing_number", "ACN"), ("radius_of_gyration", "Rg"),
+                         ("radius_of_gyration_perp", "Rg_perp"), ("asphericity", "asphericity")):
+            row[col], row[col + "_se"], _ = get(knot, key)
+        row["torus_fraction"] = get(knot, "torus_fraction")[0]
+        row["torus_fraction_window"] = get(knot, "torus_fraction_window")[0]
+        row["knot_changed_replicas"], row["knot_types_end"] = changes.get(knot, ("", ""))
+        rows.append(row)
+    return rows
+
+
+def _parse(argv):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("sets", nargs="+", metavar="[LABEL=]DIR",
+                    help="analysed sweep directory (or copy of replicas.json + summary.csv)")
+    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results",
+                    help="where table.csv and v_over_v0_vs_acn.png go (default: results/)")
+    return ap.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    args = _parse(argv)
+    sets = []
+    for item in args.sets:
+        label, _, path = item.rpartition("=") if "=" in item else ("", "", item)
+        directory = Path(path)
+        if not directory.is_dir():
+            _fail(f"{item}: no such directory; give a sweep directory analysed by knotmm")
+        sets.append((label or directory.name, directory))
+    rows = [row for label, d in sets for row in read_set(label, d)]
+    args.out.mkdir(parents=True, exist_ok=True)
+    with (args.out / "table.csv").open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=COLUMNS)
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v)
+                             for k, v in row.items()})
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    fits = []
+    for k, label in enumerate(dict.fromkeys(r["set"] for r in rows)):
+        sub = [r for r in rows if r["set"] == label]
+        x = np.array([r["ACN"] for r in sub])
+        x_se = np.array([r["ACN_se"] for r in sub])
+        y = np.array([r["V_over_V0"] for r in sub])
+        y_se = np.array([r["V_over_V0_se"] for r in sub])
+        c = np.array([r["crossing_number"] for r in sub], float)
+        color = f"C{k}"
+        fit = linear_fit(x, y)
+        fit_c = linear_fit(c, y)
+        knotted = c > 0
+        for xname, xs in (("ACN", x), ("crossing_number", c)):
+            for which, mask in (("all", np.ones_like(knotted)), ("knots", knotted)):
+                f = linear_fit(xs[mask], y[mask])
+                fits.append({"set": label, "x": xname, "points": which} | f)
+        print(f"{label}: V/V0 = {fit['intercept']:.4f} + ({fit['slope']:.4f} +- "
+              f"{fit['slope_se']:.4f}) ACN, R^2 = {fit['r2']:.3f} (n = {fit['n']}); "
+              f"against the crossing number: slope {fit_c['slope']:.4f} +- "
+              f"{fit_c['slope_se']:.4f}, R^2 = {fit_c['r2']:.3f}; V0 = {sub[0]['V']:.3f} "
+              f"+- {sub[0]['V_se']:.3f} d/tau_d")
+        for ax, xs, xe, f in ((axes[0], x, x_se, fit), (axes[1], c, None, fit_c)):
+            ax.errorbar(xs, y, yerr=y_se, xerr=xe, fmt="o", color=color, capsize=3,
+                        label=f"{label}: slope {f['slope']:.3f}$\\pm${f['slope_se']:.3f}, "
+                              f"$R^2$ = {f['r2']:.2f}")
+            grid = np.linspace(np.nanmin(xs), np.nanmax(xs), 2)
+            ax.plot(grid, f["intercept"] + f["slope"] * grid, "-", color=color, lw=1)
+        for r, xs in zip(sub, x, strict=True):
+            axes[0].annotate(r["knot"], (xs, r["V_over_V0"]), textcoords="offset points",
+                             xytext=(4, 4), fontsize=7, color=color)
+    axes[0].set_xlabel("average crossing number of the sedimenting shape (window mean)")
+    axes[1].set_xlabel("minimal crossing number of the knot type")
+    for ax in axes:
+        ax.set_ylabel("V / V(unknot)")
+        ax.legend(fontsize=7)
+    fig.suptitle("Sedimentation speed of knotted flexible rings (mean $\\pm$ s.e. over replicas)")
+    fig.tight_layout()
+    fig.savefig(args.out / "v_over_v0_vs_acn.png", dpi=120)
+    with (args.out / "fits.csv").open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(fits[0]))
+        writer.writeheader()
+        for f in fits:
+            writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in f.items()})
+            print(f"  fit {f['set']}, V/V0 vs {f['x']}, {f['points']}: slope {f['slope']:.4f} "
+                  f"+- {f['slope_se']:.4f}, intercept {f['intercept']:.3f} +- "
+                  f"{f['intercept_se']:.3f}, R^2 = {f['r2']:.3f}, n = {f['n']}")
+    print(f"wrote table.csv, fits.csv and v_over_v0_vs_acn.png in {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

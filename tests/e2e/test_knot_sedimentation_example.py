@@ -1,0 +1,111 @@
+"""examples/knot_sedimentation/make_figure.py: error propagation, the fit, the table."""
+
+import csv
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+SCRIPT = (Path(__file__).resolve().parents[2] / "examples" / "knot_sedimentation"
+          / "make_figure.py")
+
+
+@pytest.fixture(scope="module")
+def mf():
+    spec = importlib.util.spec_from_file_location("make_figure", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_ratio_error_is_quadrature_of_relative_errors(mf):
+    r, se = mf.ratio(2.0, 0.1, 1.0, 0.05)
+    assert r == pytest.approx(2.0)
+    assert se == pytest.approx(2.0 * np.sqrt(0.05**2 + 0.05**2))
+
+
+def test_ratio_error_matches_monte_carlo(mf):
+    rng = np.random.default_rng(3)
+    v, v0 = rng.normal(12.0, 0.06, 200_000), rng.normal(8.0, 0.04, 200_000)
+    _, se = mf.ratio(12.0, 0.06, 8.0, 0.04)
+    assert se == pytest.approx(np.std(v / v0), rel=0.02)
+
+
+def test_linear_fit_exact_line(mf):
+    x = np.array([0.0, 3.0, 4.0, 5.0, 7.0])
+    fit = mf.linear_fit(x, 1.0 + 0.1 * x)
+    assert fit["slope"] == pytest.approx(0.1)
+    assert fit["intercept"] == pytest.approx(1.0)
+    assert fit["r2"] == pytest.approx(1.0)
+
+
+def test_linear_fit_against_closed_form(mf):
+    rng = np.random.default_rng(1)
+    x = np.linspace(0.0, 10.0, 9)
+    y = 0.5 + 0.2 * x + rng.normal(0.0, 0.1, x.size)
+    fit = mf.linear_fit(x, y)
+    # ordinary least squares by hand: slope = Sxy / Sxx, se^2 = s^2 / Sxx
+    dx, dy = x - x.mean(), y - y.mean()
+    slope = (dx @ dy) / (dx @ dx)
+    resid = dy - slope * dx
+    s2 = (resid @ resid) / (x.size - 2)
+    assert fit["slope"] == pytest.approx(slope)
+    assert fit["slope_se"] == pytest.approx(np.sqrt(s2 / (dx @ dx)))
+    assert fit["r2"] == pytest.approx(1.0 - (resid @ resid) / (dy @ dy))
+
+
+def _fake_set(directory: Path, speeds: dict[str, float]) -> None:
+    directory.mkdir()
+    points = {}
+    for k, (knot, v) in enumerate(speeds.items()):
+        stats = {"sedimentation_velocity": {"n": 8, "mean": v, "std_error": 0.01 * v},
+                 "average_crossing_number": {"n": 8, "mean": 2.0 + 3.0 * k, "std_error": 0.1},
+                 "radius_of_gyration": {"n": 8, "mean": 5.0, "std_error": 0.1}}
+        points[f"knot.name={knot}"] = {"runs": [], "failed": {}, "statistics": stats}
+    (directory / "replicas.json").write_text(json.dumps({"points": points}))
+    with (directory / "summary.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["point", "knot_type_start", "knot_type_end", "knot_type_changed_at"])
+        for knot in speeds:
+            w.writerow([f"knot.name={knot},replica=0", knot, knot, ""])
+            w.writerow([f"knot.name={knot},replica=1", knot, "0_1", "40.0"])
+
+
+def test_main_writes_table_and_figure(mf, tmp_path):
+    _fake_set(tmp_path / "set", {"3_1": 12.0, "0_1": 8.0, "7_1": 16.0})
+    out = tmp_path / "out"
+    assert mf.main([f"demo={tmp_path / 'set'}", "--out", str(out)]) == 0
+    rows = list(csv.DictReader((out / "table.csv").open()))
+    assert [r["knot"] for r in rows] == ["0_1", "3_1", "7_1"]
+    assert float(rows[2]["V_over_V0"]) == pytest.approx(2.0)
+    assert float(rows[2]["V_over_V0_se"]) == pytest.approx(2.0 * np.sqrt(2) * 0.01, rel=1e-4)
+    assert rows[1]["knot_changed_replicas"] == "1"
+    assert (out / "v_over_v0_vs_acn.png").stat().st_size > 1000
+
+
+def test_set_without_unknot_is_one_line_exit_2(mf, tmp_path, capsys):
+    _fake_set(tmp_path / "set", {"3_1": 12.0, "4_1": 13.0})
+    with pytest.raises(SystemExit) as info:
+        mf.main([str(tmp_path / "set"), "--out", str(tmp_path / "out")])
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "0_1" in err
+
+
+def test_other_swept_keys_make_separate_sets(mf, tmp_path):
+    d = tmp_path / "grid"
+    d.mkdir()
+    points = {}
+    for pe, v0 in (("inf", 7.0), ("10.0", 8.0)):
+        for knot, v in (("0_1", v0), ("3_1", 2.0 * v0)):
+            stats = {"sedimentation_velocity": {"n": 8, "mean": v, "std_error": 0.1},
+                     "average_crossing_number": {"n": 8, "mean": 1.0 if knot == "3_1" else 0.0,
+                                                 "std_error": 0.1}}
+            points[f"knot.name={knot},run.peclet={pe}"] = {"statistics": stats}
+    (d / "replicas.json").write_text(json.dumps({"points": points}))
+    assert mf.main([f"g={d}", "--out", str(tmp_path / "out")]) == 0
+    rows = list(csv.DictReader((tmp_path / "out" / "table.csv").open()))
+    assert sorted({r["set"] for r in rows}) == ["g run.peclet=10.0", "g run.peclet=inf"]
+    assert all(float(r["V_over_V0"]) == pytest.approx(2.0) for r in rows if r["knot"] == "3_1")
