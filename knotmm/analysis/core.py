@@ -34,7 +34,7 @@ from knotmm.analysis.regime_report import (
 from knotmm.analysis.regimes import assess
 from knotmm.analysis.result import AnalysisResult
 from knotmm.analysis.shape import SHAPE_FILE, chains_of, shape_series
-from knotmm.analysis.spectra import rotation_spectrum, swirl_spectrum
+from knotmm.analysis.spectra import check_time_scale, rotation_spectrum, swirl_spectrum
 from knotmm.analysis.topology import (
     KnotTypes,
     describe_changes,
@@ -119,6 +119,9 @@ def analyze(
     """
     p = _check_int(p, "--p")
     q = _check_int(q, "--q")
+    if len(data.times) > 1:  # a time axis double precision cannot resolve: refused first
+        check_time_scale(float(data.frame_interval),
+                         float(data.times[-1] - data.times[0] + data.frame_interval))
     chains = chains_of(data)
     if len(chains) > 1:  # each chain as a run of its own, and the system (analysis.system)
         from knotmm.analysis.system import analyze_system

@@ -30,6 +30,7 @@ from knotmm.errors import ConfigError
 
 __all__ = [
     "SpectralPeak",
+    "check_time_scale",
     "Spectrum",
     "line_spectrum",
     "refine_frequency",
@@ -153,7 +154,7 @@ def refine_frequency(
 TIME_SCALES = (1e-100, 1e100)
 
 
-def _check_time_scale(dt: float, length: float) -> None:
+def check_time_scale(dt: float, length: float) -> None:
     """ConfigError (one line) for a time axis the spectra cannot resolve in double precision."""
     lo, hi = TIME_SCALES
     if not (np.isfinite(dt) and np.isfinite(length) and lo <= dt and length <= hi):
@@ -187,7 +188,7 @@ def line_spectrum(
     m = len(times)
     dt = float(times[1] - times[0])
     length = m * dt
-    _check_time_scale(dt, length)
+    check_time_scale(dt, length)
     tapered = signals * _taper(m)[:, None]
     n_fft = int(2 ** np.ceil(np.log2(_PAD * m)))
     power = (np.abs(np.fft.fft(tapered, n=n_fft, axis=0)) ** 2).sum(axis=1)

@@ -168,6 +168,17 @@ def _dispatch(argv: list[str] | None) -> int:
         return _execute(args)
 
 
+_KEPT = "files written so far are kept"
+#: What an interrupted command leaves and how it goes on (the one line of exit code 130).
+_AFTER_INTERRUPT = {
+    "run": f"{_KEPT} (a run continues with knotmm run --resume DIR)",
+    "sweep": f"{_KEPT}; the same knotmm sweep command continues the sweep",
+    "analyze": "each file of the analysis is written whole or not at all: run knotmm "
+               "analyze again",
+    "movie": "no movie is left half-written: run knotmm movie again",
+}
+
+
 def _execute(args) -> int:
     """Run the parsed command; user errors and interruptions become exit codes."""
     import platform
@@ -185,8 +196,8 @@ def _execute(args) -> int:
         code = exc.exit_code
         return code
     except KeyboardInterrupt:
-        print("knotmm: interrupted; files written so far are kept (a run continues with "
-              "knotmm run --resume DIR)", file=sys.stderr)
+        print(f"knotmm: interrupted; {_AFTER_INTERRUPT.get(args.command, _KEPT)}",
+              file=sys.stderr)
         code = 130
         return code
     except BrokenPipeError:  # output piped into a pager or `head` that closed early

@@ -92,13 +92,18 @@ def execute(args) -> int:
     import io
     import sys
 
-    from knotmm.engine.interrupt import stop_between_steps
     from knotmm.errors import ConfigError
-    from knotmm.orbit.driver import OrbitInterrupted
 
     if args.resume and not args.spec:
         raise ConfigError("--resume goes on with a continuation: give it with --continue "
                           "KEY=A:B and the --out, --points and --modes it was started with")
+    try:  # the imports take a second: a signal then is this command's line too
+        from knotmm.engine.interrupt import stop_between_steps
+        from knotmm.orbit.driver import OrbitInterrupted
+    except KeyboardInterrupt:
+        print("knotmm: interrupted before the orbit's computation began; nothing was "
+              "written", file=sys.stderr)
+        return 130
     try:
         # the first signal stops at the next step of the flow map, never inside a write
         with stop_between_steps(stream=io.StringIO()):

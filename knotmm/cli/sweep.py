@@ -115,4 +115,8 @@ def execute(args) -> int:
         reanalyze=args.reanalyze,
     )
     print(result.report())
+    # a point that could not write its files (a full disk): 3, as knotmm run; any other: 1
+    unwritten = ("OutputError", "OutputFault", "WriteFault")
+    if any(str(r.get("error") or "").startswith(unwritten) for r in result.failed):
+        return 3
     return 1 if result.failed else 0

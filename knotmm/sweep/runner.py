@@ -391,7 +391,10 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
             log_x=sweep.options.log_x,
         )
     except Exception as exc:  # a plot must not lose the sweep's results
-        log.warning("sweep plots not written: %s", error_text(exc))
+        from knotmm.io.rundir import describe_os_error
+
+        why = describe_os_error(directory, exc) if isinstance(exc, OSError) else error_text(exc)
+        log.warning("sweep plots not written: %s", why)
     return SweepResult(
         directory=directory,
         rows=rows,

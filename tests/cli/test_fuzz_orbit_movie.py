@@ -37,7 +37,7 @@ from test_run_fuzz import SEED, SIGNALS, _default_sigint, _kill
 from knotmm.cli.main import main
 
 ORBIT = ["--modes", "1", "--tolerance", "1e-6"]
-MOVIE = ["--dpi", "20", "--stride", "20"]
+MOVIE = ["--dpi", "20", "--stride", "20", "--no-progress"]  # the error alone on stderr
 INPUTS = ("trajectory.dcd", "topology.pdb", "run.toml")
 #: Files each command writes (a failure is simulated while one of them is written).
 OUTPUTS = {"orbit": ("orbit.json", "topology.pdb", "orbit.dcd", "mode_1.dcd",

@@ -206,8 +206,10 @@ def test_a_real_full_disk_and_a_read_only_one(tiny_run, small_disk, capsys):
 
 
 # -- item 7 ---------------------------------------------------------------------------------------
-@pytest.mark.filterwarnings("ignore::RuntimeWarning")
-def test_analyze_with_an_absurd_frame_interval_is_one_line(tiny_run, tmp_path, capsys):
-    line = _one_line(capsys, ["analyze", str(tiny_run), "--frame-interval", "1e300",
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # refused before any arithmetic overflows
+@pytest.mark.parametrize("interval", ["1e300", "1e200", "1e-170"])
+def test_analyze_with_an_absurd_frame_interval_is_one_line(tiny_run, tmp_path, capsys,
+                                                          interval):
+    line = _one_line(capsys, ["analyze", str(tiny_run), "--frame-interval", interval,
                               "--knot-samples", "0", "--no-plots", "--out", str(tmp_path)], 2)
-    assert "frame interval" in line and "1e+300" in line, line
+    assert "frame interval" in line and f"{float(interval):g}" in line, line
