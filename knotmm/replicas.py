@@ -244,7 +244,7 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     if duration is not None:
         cfg = cfg.replace({"run.duration": float(duration)})
     target = float(duration) if duration is not None else cfg["run.duration"]
-    if all(_done(replica_directory(root, k), target) for k in range(len(seeds))):
+    if all(_reached(_facts(replica_directory(root, k)), target) for k in range(len(seeds))):
         raise RunDirectoryError(
             f"--resume {str(root)!r}: every replica already finished at t = {target:g} tau_d; "
             f"pass --duration T with a larger T to extend them"
@@ -255,15 +255,15 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     try:
         for k, seed in enumerate(seeds):
             where = replica_directory(root, k)
-            status = run_status(where) if (where / RUN_FILE).exists() else None
-            if status is None:
+            facts = _facts(where)
+            if facts is None:  # never started
                 sub = _replica_config(cfg, seed, where)
                 results.append(_one(k, lambda sub=sub, where=where: run(
                     sub, directory=where, overwrite=True, progress=progress,
                     wait_for_checks=wait_for_checks), errors))
                 continue
-            if _done(where, target):
-                results.append(_finished(where, read_facts(where)))
+            if _reached(facts, target):
+                results.append(_finished(where, facts))
                 continue
             results.append(_one(k, lambda where=where: resume(
                 where, progress=progress, duration=duration,
@@ -275,11 +275,16 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     return ReplicaSetResult(root, results, errors, time.perf_counter() - wall0)
 
 
-def _done(where: Path, target: float) -> bool:
-    """Whether the replica in ``where`` finished at ``target`` tau_d or later."""
-    if not (where / RUN_FILE).is_file() or run_status(where) != "finished":
+def _facts(where: Path) -> dict | None:
+    """The ``[knotmm]`` facts of the replica in ``where``; None when it never started."""
+    return read_facts(where) if (where / RUN_FILE).is_file() else None
+
+
+def _reached(facts: dict | None, target: float) -> bool:
+    """Whether a replica with these facts finished at ``target`` tau_d or later."""
+    if facts is None or facts.get("status") != "finished":
         return False
-    return float(read_facts(where).get("time_reached", 0.0) or 0.0) >= target - 1e-9
+    return float(facts.get("time_reached", 0.0) or 0.0) >= target - 1e-9
 
 
 def _finished(where: Path, facts: dict) -> RunResult:
@@ -295,10 +300,3 @@ def _finished(where: Path, facts: dict) -> RunResult:
         sedimentation_velocity=float(facts.get("mean_sedimentation_velocity", 0.0)),
         session_steps=0,
     )
-
-
-def replica_set_of(path) -> Path | None:
-    """The set a run directory belongs to (its parent holds ``replicas.toml``), else None."""
-    p = Path(path).resolve()
-    return p.parent if replica_index(p.name) is not None and is_replica_set(p.parent) else None
-

@@ -32,7 +32,11 @@ from knotmm.errors import TemplateError
 from knotmm.shapes.curves import TooFewBeads, TubeCurve, braid_curve, braid_cycles, equal_chord
 from knotmm.shapes.validation import check_int, check_positive
 
-__all__ = ["COMMON_LINKS", "LinkShape", "braid_link", "named_link", "torus_link"]
+__all__ = ["COMMON_LINKS", "LINKINFO_NAME", "LinkShape", "braid_link", "named_link",
+           "torus_link"]
+
+#: A LinkInfo link name: ``L4a1``, or with its orientation ``L4a1{1}``.
+LINKINFO_NAME = re.compile(r"L\d+[an]\d+(\{[\d,]+\})?")
 
 #: Common names of links: ("torus", (p, q)) or ("braid", word). Whitehead and Borromean
 #: rings from their braid words (LinkInfo L5a1{0}, L6a4{0}).
@@ -279,7 +283,7 @@ def named_link(name: str, beads: int, bond_length: float = 0.6, minor_radius: fl
                              shape.major_radius, shape.bond_lengths)
         return braid_link(data, beads, bond_length, minor_radius, mirror,
                           name=f"the {key.lower()} link")
-    if re.fullmatch(r"L\d+[an]\d+(\{[\d,]+\})?", key):
+    if LINKINFO_NAME.fullmatch(key):
         word = _linkinfo_word(key)
         if word is not None:
             return braid_link(word, beads, bond_length, minor_radius, mirror, name=key)

@@ -11,7 +11,6 @@ a :class:`knotmm.shapes.template.Template` whose ``layout`` describes its chains
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Callable
 from typing import Any
 
@@ -22,7 +21,7 @@ from knotmm.model.layout import ChainLayout
 from knotmm.shapes.assembly import assemble, place
 from knotmm.shapes.checks import BOND_TOLERANCE, check_template
 from knotmm.shapes.curves import braid_cycles
-from knotmm.shapes.links import COMMON_LINKS, braid_link, named_link, torus_link
+from knotmm.shapes.links import COMMON_LINKS, LINKINFO_NAME, braid_link, named_link, torus_link
 from knotmm.shapes.open_chains import OPEN_KINDS, arc, closest_nonbonded_open, helix, straight
 from knotmm.shapes.resources import check_memory
 from knotmm.shapes.template import Template
@@ -31,7 +30,6 @@ from knotmm.units import LJ_CUTOFF_FACTOR
 
 __all__ = ["build_chains", "build_link", "build_open", "is_link", "is_open"]
 
-_LINK_NAME = re.compile(r"^L\d+[an]\d+(\{[\d,]+\})?$")
 
 
 def is_open(cfg) -> bool:
@@ -58,7 +56,7 @@ def is_link(cfg) -> bool:
         return not split and len(braid_cycles(word, strands)) > 1
     if kind == "knotinfo":
         name = str(cfg["knot.name"] or "").strip()
-        return bool(_LINK_NAME.match(name)) or name.lower() in COMMON_LINKS
+        return bool(LINKINFO_NAME.fullmatch(name)) or name.lower() in COMMON_LINKS
     return False
 
 
