@@ -3,7 +3,7 @@
 ``DIR/summary.csv`` has one row per point, in sweep order: ``point``, ``directory``, the
 swept keys (by dotted name), ``replica`` and ``run.seed`` for ensembles, ``status``,
 ``error``, then the analysis values (:data:`ANALYSIS_COLUMNS`). It is rewritten atomically
-after every point. The file format is described in ``docs/architecture.md``.
+after every point; its columns are those listed here (the API reference shows them).
 """
 
 from __future__ import annotations
@@ -36,9 +36,19 @@ SUMMARY_FILE = "summary.csv"
 #: Values of the ``status`` column.
 STATUSES = ("finished", "analysis_failed", "fault", "error", "pending")
 
+#: Shape observables of every run (window means, with a block-bootstrap standard error).
+SHAPE_COLUMNS = (
+    "average_crossing_number",
+    "radius_of_gyration",
+    "radius_of_gyration_perp",
+    "asphericity",
+)
+
 #: Analysis values in ``summary.csv``, in column order (from ``analysis.json``; ``window``
-#: becomes ``window_start``/``window_end``, ``fit_quality.r2`` becomes ``fit_r2``), then
-#: ``time_reached`` (tau_d, from ``run.toml``).
+#: becomes ``window_start``/``window_end``, ``fit_quality.r2`` becomes ``fit_r2``; a shape
+#: observable's ``_uncertainty`` is its ``uncertainties`` entry's ``std_error``;
+#: ``knot_type_change_count`` is the length of ``knot_type_changes``), then ``time_reached``
+#: (tau_d, from ``run.toml``).
 ANALYSIS_COLUMNS = (
     "tau_swirl_over_tau_sed",
     "tau_swirl_over_tau_sed_uncertainty",
@@ -60,9 +70,13 @@ ANALYSIS_COLUMNS = (
     "rotation_frequency",
     "writhe",
     "handedness",
+    *(f"{name}{tail}" for name in SHAPE_COLUMNS for tail in ("", "_uncertainty")),
+    "torus_fraction",
+    "torus_fraction_window",
     "knot_type_start",
     "knot_type_end",
     "knot_type_changed_at",
+    "knot_type_change_count",
     "p",
     "q",
     "window_start",
@@ -84,6 +98,11 @@ def summary_values(analysis: Mapping[str, Any] | None) -> dict[str, Any]:
     out["window_start"], out["window_end"] = window[0], window[1]
     quality = analysis.get("fit_quality") or {}
     out["fit_r2"] = quality.get("r2")
+    errors = analysis.get("uncertainties") or {}
+    for name in SHAPE_COLUMNS:
+        out[f"{name}_uncertainty"] = (errors.get(name) or {}).get("std_error")
+    changes = analysis.get("knot_type_changes")
+    out["knot_type_change_count"] = len(changes) if isinstance(changes, list) else None
     return out
 
 

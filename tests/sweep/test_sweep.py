@@ -204,8 +204,16 @@ def fake_rows(sweep):
                 "knot_type_start": "3_1",
                 "knot_type_end": "+12n655",
                 "knot_type_changed_at": 473.0,
+                "knot_type_changes": [{"time": 473.0, "from": "3_1", "to": "+12n655"}],
                 "window": [3.5, 20.0],
                 "fit_quality": {"r2": 0.9},
+                "average_crossing_number": 4.5,
+                "radius_of_gyration": 3.25,
+                "radius_of_gyration_perp": 3.0,
+                "torus_fraction": 0.5,
+                "torus_fraction_window": 1.0,
+                "uncertainties": {"average_crossing_number": {"std_error": 0.25},
+                                  "radius_of_gyration": {"std_error": None}},
             }
         )
         rows.append(
@@ -236,6 +244,14 @@ def test_summary_roundtrip(tmp_path):
     assert back[0]["rotation_sense"] == "clockwise"
     assert back[0]["knot_type_start"] == "3_1" and back[0]["knot_type_end"] == "+12n655"
     assert back[0]["knot_type_changed_at"] == 473.0 and back[0]["p"] is None
+    assert back[0]["knot_type_change_count"] == 1
+    assert back[0]["average_crossing_number"] == 4.5
+    assert back[0]["average_crossing_number_uncertainty"] == 0.25
+    assert back[0]["radius_of_gyration"] == 3.25
+    assert back[0]["radius_of_gyration_uncertainty"] is None
+    assert back[0]["radius_of_gyration_perp"] == 3.0 and back[0]["asphericity"] is None
+    assert back[0]["torus_fraction"] == 0.5 and back[0]["torus_fraction_window"] == 1.0
+    assert back[1]["knot_type_change_count"] is None and back[1]["torus_fraction"] is None
     assert back[1]["error"] == "TemplateError: too few, really" and back[1]["tau_sed"] is None
 
 
