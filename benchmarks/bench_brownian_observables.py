@@ -33,8 +33,10 @@ from pathlib import Path
 
 def run_set(work: Path, pe: float, spec: str, args) -> dict:
     """One replicated run and its analysis; the replica means and errors, and the wall time."""
-    name, _, step = spec.partition(":")
-    out = work / f"pe{pe:g}_{name}_{step or 'auto'}"
+    spec_step, _, tolerance = spec.partition("/")
+    name, _, step = spec_step.partition(":")
+    out = work / (f"pe{pe:g}_{name}_{step or 'auto'}" + (f"_tol{tolerance}" if tolerance else "")
+                  + f"_seed{args.seed}")
     cmd = [sys.executable, "-m", "knotmm.cli", "run", "--out", str(out), "--overwrite",
            "--no-progress", "--duration", str(args.duration), "--beads", str(args.beads),
            "--set", f"run.peclet={pe}", "--set", f"run.seed={args.seed}",
@@ -44,8 +46,13 @@ def run_set(work: Path, pe: float, spec: str, args) -> dict:
            "--set", "model.segment_repulsion=false"]
     if step:
         cmd += ["--set", f"run.timestep={step}"]
+    if tolerance:
+        cmd += ["--set", f"run.tolerance={tolerance}"]
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if args.reuse and (out / "replicas.json").is_file():
+        proc = subprocess.CompletedProcess(cmd, 0)  # analysed before: read it again
+    else:
+        proc = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         return dict(spec=spec, pe=pe, ok=False, wall=wall,
@@ -85,8 +92,12 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=2020)
     parser.add_argument("--perturbation", type=float, default=0.01)
     parser.add_argument("--integrators", nargs=2, default=["auto", "ito_heun:0.001"],
-                        help="NAME or NAME:STEP; the first is compared with the second")
+                        help="NAME, NAME:STEP or NAME/TOLERANCE (d); the first is compared "
+                             "with the second")
     parser.add_argument("--work", type=Path, help="keep the run directories here")
+    parser.add_argument("--reuse", action="store_true",
+                        help="a set already run and analysed in --work is not run again "
+                             "(its wall time is then not measured)")
     args = parser.parse_args(argv)
     print(f"load average at start: {os.getloadavg()[0]:.2f}", flush=True)
     with tempfile.TemporaryDirectory() as tmp:

@@ -12,7 +12,8 @@ standard error over the replicas of the sedimentation speed ``V``, the average c
 number (ACN) of the sedimenting shape, ``Rg``, ``Rg_perp``, the asphericity and the torus
 fraction; ``V / V0`` carries both standard errors (the unknot's own point: 1, with V0's
 relative error as its bar); from ``summary.csv`` the knot type at the start and end of
-every replica. It writes ``OUT/table.csv``, ``OUT/fits.csv`` and ``OUT/v_over_v0_vs_acn.png``
+every replica. It writes ``OUT/table.csv``, ``OUT/fits.csv``, ``OUT/v_over_v0_vs_acn.png``
+(one panel per set) and ``OUT/v_over_v0_vs_crossing_number.png`` (all sets on one axis)
 (default OUT: ``results`` beside this script): the straight-line fits of ``V / V0`` against
 the ACN and against the minimal crossing number, over all knot types and over the knotted
 ones only (unweighted least squares, parameter errors from the scatter).
@@ -217,9 +218,14 @@ def main(argv=None) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    labels = list(dict.fromkeys(r["set"] for r in rows))
+    ncols = min(len(labels), 4)
+    nrows = math.ceil(len(labels) / ncols)
+    fig, panels = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 3.3 * nrows), squeeze=False,
+                               sharey=True)
+    fig_c, ax_c = plt.subplots(figsize=(7.5, 4.8))
     fits = []
-    for k, label in enumerate(dict.fromkeys(r["set"] for r in rows)):
+    for k, label in enumerate(labels):
         sub = [r for r in rows if r["set"] == label]
         x = np.array([r["ACN"] for r in sub])
         x_se = np.array([r["ACN_se"] for r in sub])
@@ -239,23 +245,40 @@ def main(argv=None) -> int:
               f"against the crossing number: slope {fit_c['slope']:.4f} +- "
               f"{fit_c['slope_se']:.4f}, R^2 = {fit_c['r2']:.3f}; V0 = {sub[0]['V']:.3f} "
               f"+- {sub[0]['V_se']:.3f} d/tau_d")
-        for ax, xs, xe, f in ((axes[0], x, x_se, fit), (axes[1], c, None, fit_c)):
-            ax.errorbar(xs, y, yerr=y_se, xerr=xe, fmt="o", color=color, capsize=3,
-                        label=f"{label}: slope {f['slope']:.3f}$\\pm${f['slope_se']:.3f}, "
-                              f"$R^2$ = {f['r2']:.2f}")
-            grid = np.linspace(np.nanmin(xs), np.nanmax(xs), 2)
-            ax.plot(grid, f["intercept"] + f["slope"] * grid, "-", color=color, lw=1)
+        # one panel per set against the ACN (the sets' ACN ranges differ widely)
+        ax = panels[k // ncols][k % ncols]
+        ax.errorbar(x, y, yerr=y_se, xerr=x_se, fmt="o", color=color, capsize=3)
+        grid = np.linspace(np.nanmin(x), np.nanmax(x), 2)
+        ax.plot(grid, fit["intercept"] + fit["slope"] * grid, "-", color=color, lw=1)
         for r, xs in zip(sub, x, strict=True):
-            axes[0].annotate(r["knot"], (xs, r["V_over_V0"]), textcoords="offset points",
-                             xytext=(4, 4), fontsize=7, color=color)
-    axes[0].set_xlabel("average crossing number of the sedimenting shape (window mean)")
-    axes[1].set_xlabel("minimal crossing number of the knot type")
-    for ax in axes:
-        ax.set_ylabel("V / V(unknot)")
-        ax.legend(fontsize=7)
-    fig.suptitle("Sedimentation speed of knotted flexible rings (mean $\\pm$ s.e. over replicas)")
+            ax.annotate(r["knot"], (xs, r["V_over_V0"]), textcoords="offset points",
+                        xytext=(4, 4), fontsize=7, color=color)
+        ax.set_title(f"{label}\nslope {fit['slope']:.3f}$\\pm${fit['slope_se']:.3f}, "
+                     f"$R^2$ = {fit['r2']:.2f}", fontsize=8)
+        ax.set_xlabel("ACN of the sedimenting shape", fontsize=8)
+        # all sets on one axis against the crossing number, side by side
+        shift = 0.5 * (k - (len(labels) - 1) / 2) / max(len(labels), 1)
+        ax_c.errorbar(c + shift, y, yerr=y_se, fmt="o", color=color, capsize=2, ms=4,
+                      label=f"{label}: slope {fit_c['slope']:.3f}$\\pm${fit_c['slope_se']:.3f}, "
+                            f"$R^2$ = {fit_c['r2']:.2f}")
+        grid = np.array([0.0, max(KNOTS.values())])
+        ax_c.plot(grid, fit_c["intercept"] + fit_c["slope"] * grid, "-", color=color, lw=0.8)
+    for k in range(len(labels), nrows * ncols):
+        panels[k // ncols][k % ncols].set_visible(False)
+    for row in panels:
+        row[0].set_ylabel("V / V(unknot)")
+    fig.suptitle("Sedimentation speed of knotted flexible rings against the ACN "
+                 "(mean $\\pm$ s.e. over replicas)", fontsize=10)
     fig.tight_layout()
     fig.savefig(args.out / "v_over_v0_vs_acn.png", dpi=120)
+    ax_c.set_xlabel("minimal crossing number of the knot type")
+    ax_c.set_ylabel("V / V(unknot)")
+    ax_c.set_xticks(sorted(set(KNOTS.values())))
+    ax_c.legend(fontsize=6)
+    ax_c.set_title("Sedimentation speed against the knot type (mean $\\pm$ s.e. over replicas)",
+                   fontsize=9)
+    fig_c.tight_layout()
+    fig_c.savefig(args.out / "v_over_v0_vs_crossing_number.png", dpi=120)
     with (args.out / "fits.csv").open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(fits[0]))
         writer.writeheader()
@@ -264,7 +287,8 @@ def main(argv=None) -> int:
             print(f"  fit {f['set']}, V/V0 vs {f['x']}, {f['points']}: slope {f['slope']:.4f} "
                   f"+- {f['slope_se']:.4f}, intercept {f['intercept']:.3f} +- "
                   f"{f['intercept_se']:.3f}, R^2 = {f['r2']:.3f}, n = {f['n']}")
-    print(f"wrote table.csv, fits.csv and v_over_v0_vs_acn.png in {args.out}")
+    print(f"wrote table.csv, fits.csv, v_over_v0_vs_acn.png and "
+          f"v_over_v0_vs_crossing_number.png in {args.out}")
     return 0
 
 

@@ -83,6 +83,7 @@ def test_main_writes_table_and_figure(mf, tmp_path):
     assert float(rows[2]["V_over_V0_se"]) == pytest.approx(2.0 * np.sqrt(2) * 0.01, rel=1e-4)
     assert rows[1]["knot_changed_replicas"] == "1"
     assert (out / "v_over_v0_vs_acn.png").stat().st_size > 1000
+    assert (out / "v_over_v0_vs_crossing_number.png").stat().st_size > 1000
 
 
 def test_set_without_unknot_is_one_line_exit_2(mf, tmp_path, capsys):
