@@ -176,7 +176,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         ),
         "tolerance": Key(
             "float", None, "adaptive integrators: local error per step, in d; default 1e-4 "
-            "(ito_heun_adaptive: 0.02, times sqrt(10 / Pe) above Pe = 10)",
+            "(ito_heun_adaptive: 0.02, times (10 / Pe)^1.5 above Pe = 10, at least 1e-4)",
             0.0, None, True,
         ),
         "max_timestep": Key("float", 1.0, "adaptive integrators: largest step, in tau_d", 0.0,

@@ -11,10 +11,13 @@ Per set and knot type it reads from ``replicas.json`` the mean and
 standard error over the replicas of the sedimentation speed ``V``, the average crossing
 number (ACN) of the sedimenting shape, ``Rg``, ``Rg_perp``, the asphericity and the torus
 fraction; ``V / V0`` carries both standard errors (the unknot's own point: 1, with V0's
-relative error as its bar); from ``summary.csv`` the knot type at the start and end of
-every replica. It writes ``OUT/table.csv``, ``OUT/fits.csv``, ``OUT/v_over_v0_vs_acn.png``
-(one panel per set) and ``OUT/v_over_v0_vs_crossing_number.png`` (all sets on one axis)
-(default OUT: ``results`` beside this script): the straight-line fits of ``V / V0`` against
+relative error as its bar); per replica, whether its knot type changed and its final type:
+from ``knot_checks.csv`` (the runs' own checks, :func:`write_knot_checks`) where the
+directory has one, else from ``summary.csv``. It writes ``OUT/table.csv``,
+``OUT/fits.csv``, ``OUT/tables.md`` (the README's tables: sets by knot types),
+``OUT/v_over_v0_vs_acn.png`` (one panel per set) and
+``OUT/v_over_v0_vs_crossing_number.png`` (all sets on one axis) (default OUT: ``results``
+beside this script): the straight-line fits of ``V / V0`` against
 the ACN and against the minimal crossing number, over all knot types and over the knotted
 ones only (unweighted least squares, parameter errors from the scatter).
 
@@ -123,18 +126,58 @@ def linear_fit(x, y, y_se=None):
             "r2": r2, "n": int(len(x))}
 
 
-def knot_changes(summary: Path) -> dict[tuple[str, str], tuple[int, str]]:
-    """Per (other swept values, knot): replicas whose knot type changed, and the end types."""
+CHECK_COLUMNS = ("point", "knot_type_start", "knot_type_final", "knot_type_checks",
+                 "knot_type_changes")
+
+
+def write_knot_checks(sweep: Path, out: Path) -> Path:
+    """``out/knot_checks.csv``: each replica's run-time knot-type record, from its run.toml.
+
+    A run identifies its knot every ``run.topology_check_interval`` (``[knotmm]
+    knot_type_start``, ``knot_type`` after the last check, ``knot_type_checks``,
+    ``knot_type_changes``); the columns are those, the changes as ``time:from>to`` joined
+    by ``;``. A frame topoly cannot name (``unknown``) is no change.
+    """
+    import tomllib
+
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "knot_checks.csv"
+    with path.open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(CHECK_COLUMNS)
+        for run_toml in sorted(sweep.glob("*/run.toml")):
+            facts = tomllib.loads(run_toml.read_text()).get("knotmm", {})
+            changes = ";".join(f"{c['time']:g}:{c['from']}>{c['to']}"
+                               for c in facts.get("knot_type_changes", []))
+            writer.writerow([run_toml.parent.name, facts.get("knot_type_start", ""),
+                             facts.get("knot_type", ""), facts.get("knot_type_checks", ""),
+                             changes])
+    return path
+
+
+def knot_changes(directory: Path) -> dict[tuple[str, str], tuple[int, str]]:
+    """Per (other swept values, knot): replicas whose knot type changed, and the final types.
+
+    From ``knot_checks.csv`` (:func:`write_knot_checks`: the runs' own checks, the type
+    after the last one), else from ``summary.csv`` (the sweep's analysis of sampled frames:
+    a change anywhere, and the type at the end of that analysis's window).
+    """
     out: dict[tuple[str, str], tuple[int, set]] = {}
-    if not summary.is_file():
+    checks, summary = directory / "knot_checks.csv", directory / "summary.csv"
+    source = checks if checks.is_file() else summary
+    if not source.is_file():
         return {}
-    with summary.open(newline="") as fh:
+    with source.open(newline="") as fh:
         for row in csv.DictReader(fh):
             key = (rest_of(row["point"]), knot_of(row["point"]))
-            changed = bool(row.get("knot_type_changed_at")) or (
-                row.get("knot_type_start", "") != row.get("knot_type_end", ""))
+            if source is checks:
+                changed, end = bool(row["knot_type_changes"]), row["knot_type_final"]
+            else:
+                changed = bool(row.get("knot_type_changed_at")) or (
+                    row.get("knot_type_start", "") != row.get("knot_type_end", ""))
+                end = row.get("knot_type_end")
             n, ends = out.get(key, (0, set()))
-            ends.add(row.get("knot_type_end") or "?")
+            ends.add(end or "?")
             out[key] = (n + int(changed), ends)
     return {k: (n, ";".join(sorted(e))) for k, (n, e) in out.items()}
 
@@ -152,7 +195,7 @@ def read_set(label: str, directory: Path) -> list[dict]:
     groups: dict[str, dict] = {}
     for name, p in points.items():
         groups.setdefault(rest_of(name), {})[knot_of(name)] = p["statistics"]
-    changes = knot_changes(directory / "summary.csv")
+    changes = knot_changes(directory)
     rows = []
     for rest, stats in groups.items():
         name = f"{label} {rest}".strip()
@@ -185,6 +228,55 @@ def _rows(label: str, stats: dict, changes: dict) -> list[dict]:
         row["knot_changed_replicas"], row["knot_types_end"] = changes.get(knot, ("", ""))
         rows.append(row)
     return rows
+
+
+def _pm(value, error, digits):
+    if not math.isfinite(value):
+        return "not measured"
+    if not math.isfinite(error):
+        return f"{value:.{digits}f}"
+    return f"{value:.{digits}f} +- {error:.{digits}f}"
+
+
+def markdown(rows: list[dict], fits: list[dict]) -> str:
+    """The README's tables: one row per set, one column per knot type (Markdown)."""
+    labels = list(dict.fromkeys(r["set"] for r in rows))
+    knots = sorted({r["knot"] for r in rows}, key=lambda k: (KNOTS.get(k, 99), k))
+    cell = {(r["set"], r["knot"]): r for r in rows}
+    head = "| set | " + " | ".join(knots) + " |\n|---|" + "---|" * len(knots) + "\n"
+
+    def table(title, fmt):
+        lines = [f"{title}\n\n", head]
+        for label in labels:
+            items = [fmt(cell[(label, k)]) if (label, k) in cell else "" for k in knots]
+            lines.append(f"| {label} | " + " | ".join(items) + " |\n")
+        return "".join(lines) + "\n"
+
+    out = table("V / V0 (mean +- s.e.; the unknot's entry: V0 in d/tau_d)",
+                lambda r: _pm(r["V"], r["V_se"], 2) if r["knot"] == "0_1"
+                else _pm(r["V_over_V0"], r["V_over_V0_se"], 2))
+    out += table("ACN of the sedimenting shape (window mean over replicas +- s.e.)",
+                 lambda r: _pm(r["ACN"], r["ACN_se"], 1))
+    out += table("Rg / Rg_perp (d)",
+                 lambda r: f"{r['Rg']:.2f} / {r['Rg_perp']:.2f}")
+    out += table("Torus fraction: in the window / over the run",
+                 lambda r: f"{r['torus_fraction_window']:.2f} / {r['torus_fraction']:.2f}")
+    out += table("Replicas whose knot type changed, of those run (the runs' own checks"
+                 " where knot_checks.csv is there); the final types where they differ",
+                 lambda r: f"{r['knot_changed_replicas']} of {r['replicas']}"
+                 + ("" if r["knot_types_end"] in (r["knot"], f"+{r['knot']}", f"-{r['knot']}")
+                    else f" ({r['knot_types_end'].replace(';', ', ')})"))
+    by = {(f["set"], f["x"], f["points"]): f for f in fits}
+    lines = ["Straight-line fits of V / V0 (slope +- s.e., R^2)\n\n",
+             "| set | against ACN, all 7 | against ACN, 6 knots | against crossing number, "
+             "6 knots |\n|---|---|---|---|\n"]
+    for label in labels:
+        items = []
+        for key in (("ACN", "all"), ("ACN", "knots"), ("crossing_number", "knots")):
+            f = by[(label, *key)]
+            items.append(f"{f['slope']:.4f} +- {f['slope_se']:.4f}, {f['r2']:.2f}")
+        lines.append(f"| {label} | " + " | ".join(items) + " |\n")
+    return out + "".join(lines)
 
 
 def _parse(argv):
@@ -287,7 +379,8 @@ def main(argv=None) -> int:
             print(f"  fit {f['set']}, V/V0 vs {f['x']}, {f['points']}: slope {f['slope']:.4f} "
                   f"+- {f['slope_se']:.4f}, intercept {f['intercept']:.3f} +- "
                   f"{f['intercept_se']:.3f}, R^2 = {f['r2']:.3f}, n = {f['n']}")
-    print(f"wrote table.csv, fits.csv, v_over_v0_vs_acn.png and "
+    (args.out / "tables.md").write_text(markdown(rows, fits))
+    print(f"wrote table.csv, fits.csv, tables.md, v_over_v0_vs_acn.png and "
           f"v_over_v0_vs_crossing_number.png in {args.out}")
     return 0
 

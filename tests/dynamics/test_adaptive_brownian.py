@@ -145,10 +145,12 @@ def test_default_tolerance_is_the_registry_one():
     assert resolve_tolerance("rk23", None) == 1e-4
 
 
-def test_default_tolerance_follows_the_thermal_length_above_pe_10():
+def test_default_tolerance_shrinks_as_kt_to_the_1_5_above_pe_10():
     from knotmm.dynamics.registry import resolve_tolerance
 
     assert resolve_tolerance("ito_heun_adaptive", None, 1.0) == 0.02
     assert resolve_tolerance("ito_heun_adaptive", None, 10.0) == 0.02
-    assert resolve_tolerance("ito_heun_adaptive", None, 40.0) == pytest.approx(0.01)
+    assert resolve_tolerance("ito_heun_adaptive", None, 40.0) == pytest.approx(0.02 / 8)
+    assert resolve_tolerance("ito_heun_adaptive", None, 50.0) == pytest.approx(0.0017889, rel=1e-4)
+    assert resolve_tolerance("ito_heun_adaptive", None, 1e4) == 1e-4  # rk23's, never tighter
     assert resolve_tolerance("ito_heun_adaptive", 0.05, 40.0) == 0.05  # as given

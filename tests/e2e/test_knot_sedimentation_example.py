@@ -84,6 +84,8 @@ def test_main_writes_table_and_figure(mf, tmp_path):
     assert rows[1]["knot_changed_replicas"] == "1"
     assert (out / "v_over_v0_vs_acn.png").stat().st_size > 1000
     assert (out / "v_over_v0_vs_crossing_number.png").stat().st_size > 1000
+    md = (out / "tables.md").read_text()
+    assert "| demo | 8.00 +- 0.08 | 1.50 +- 0.02 | 2.00 +- 0.03 |" in md
 
 
 def test_set_without_unknot_is_one_line_exit_2(mf, tmp_path, capsys):
@@ -110,3 +112,23 @@ def test_other_swept_keys_make_separate_sets(mf, tmp_path):
     rows = list(csv.DictReader((tmp_path / "out" / "table.csv").open()))
     assert sorted({r["set"] for r in rows}) == ["g run.peclet=10.0", "g run.peclet=inf"]
     assert all(float(r["V_over_V0"]) == pytest.approx(2.0) for r in rows if r["knot"] == "3_1")
+
+
+def test_knot_checks_come_from_the_runs_own_record(mf, tmp_path):
+    sweep = tmp_path / "sweep"
+    _fake_set(sweep, {"3_1": 12.0, "0_1": 8.0})
+    for name, final, changes in (
+        ("knot.name=0_1,replica=0", "0_1", ""),
+        ("knot.name=3_1,replica=0", "+7_5", '{ time = 70.0, from = "+3_1", to = "+7_5" }'),
+        ("knot.name=3_1,replica=1", "+3_1", ""),
+    ):
+        (sweep / name).mkdir()
+        (sweep / name / "run.toml").write_text(
+            f'[knotmm]\nknot_type_start = "{name[10:13]}"\nknot_type = "{final}"\n'
+            f"knot_type_checks = 20\nknot_type_changes = [{changes}]\n")
+    mf.write_knot_checks(sweep, sweep)
+    rows = list(csv.DictReader((sweep / "knot_checks.csv").open()))
+    assert rows[1]["knot_type_changes"] == "70:+3_1>+7_5"
+    # the runs' record wins over summary.csv's (where replica 1 of each knot ends as 0_1)
+    assert mf.knot_changes(sweep)[("", "3_1")] == (1, "+3_1;+7_5")
+    assert mf.knot_changes(sweep)[("", "0_1")] == (0, "0_1")
