@@ -51,7 +51,8 @@ QUANTITIES = (
 COLUMNS = (
     "set", "knot", "crossing_number", "replicas", "V", "V_se", "V_over_V0", "V_over_V0_se",
     "ACN", "ACN_se", "Rg", "Rg_se", "Rg_perp", "Rg_perp_se", "asphericity", "asphericity_se",
-    "torus_fraction", "torus_fraction_window", "knot_changed_replicas", "knot_types_end",
+    "torus_fraction", "torus_fraction_window", "knot_changed_replicas", "knot_kept_replicas",
+    "knot_types_end",
 )
 
 
@@ -155,14 +156,15 @@ def write_knot_checks(sweep: Path, out: Path) -> Path:
     return path
 
 
-def knot_changes(directory: Path) -> dict[tuple[str, str], tuple[int, str]]:
-    """Per (other swept values, knot): replicas whose knot type changed, and the final types.
+def knot_changes(directory: Path) -> dict[tuple[str, str], tuple[int, int, str]]:
+    """Per (other swept values, knot): replicas whose knot type changed, those whose final
+    type is the start's (mirror images count as the same), and the final types.
 
     From ``knot_checks.csv`` (:func:`write_knot_checks`: the runs' own checks, the type
     after the last one), else from ``summary.csv`` (the sweep's analysis of sampled frames:
     a change anywhere, and the type at the end of that analysis's window).
     """
-    out: dict[tuple[str, str], tuple[int, set]] = {}
+    out: dict[tuple[str, str], tuple[int, int, set]] = {}
     checks, summary = directory / "knot_checks.csv", directory / "summary.csv"
     source = checks if checks.is_file() else summary
     if not source.is_file():
@@ -176,10 +178,11 @@ def knot_changes(directory: Path) -> dict[tuple[str, str], tuple[int, str]]:
                 changed = bool(row.get("knot_type_changed_at")) or (
                     row.get("knot_type_start", "") != row.get("knot_type_end", ""))
                 end = row.get("knot_type_end")
-            n, ends = out.get(key, (0, set()))
+            n, kept, ends = out.get(key, (0, 0, set()))
             ends.add(end or "?")
-            out[key] = (n + int(changed), ends)
-    return {k: (n, ";".join(sorted(e))) for k, (n, e) in out.items()}
+            kept += int((end or "").lstrip("+-") == key[1])
+            out[key] = (n + int(changed), kept, ends)
+    return {k: (n, kept, ";".join(sorted(e))) for k, (n, kept, e) in out.items()}
 
 
 def read_set(label: str, directory: Path) -> list[dict]:
@@ -225,7 +228,8 @@ def _rows(label: str, stats: dict, changes: dict) -> list[dict]:
             row[col], row[col + "_se"], _ = get(knot, key)
         row["torus_fraction"] = get(knot, "torus_fraction")[0]
         row["torus_fraction_window"] = get(knot, "torus_fraction_window")[0]
-        row["knot_changed_replicas"], row["knot_types_end"] = changes.get(knot, ("", ""))
+        (row["knot_changed_replicas"], row["knot_kept_replicas"],
+         row["knot_types_end"]) = changes.get(knot, ("", "", ""))
         rows.append(row)
     return rows
 
@@ -262,10 +266,10 @@ def markdown(rows: list[dict], fits: list[dict]) -> str:
     out += table("Torus fraction: in the window / over the run",
                  lambda r: f"{r['torus_fraction_window']:.2f} / {r['torus_fraction']:.2f}")
     out += table("Replicas whose knot type changed, of those run (the runs' own checks"
-                 " where knot_checks.csv is there); the final types where they differ",
+                 " where knot_checks.csv is there), and how many end as the knot they started as",
                  lambda r: f"{r['knot_changed_replicas']} of {r['replicas']}"
-                 + ("" if r["knot_types_end"] in (r["knot"], f"+{r['knot']}", f"-{r['knot']}")
-                    else f" ({r['knot_types_end'].replace(';', ', ')})"))
+                 + ("" if r["knot_kept_replicas"] == r["replicas"]
+                    else f", {r['knot_kept_replicas']} end as {r['knot']}"))
     by = {(f["set"], f["x"], f["points"]): f for f in fits}
     lines = ["Straight-line fits of V / V0 (slope +- s.e., R^2)\n\n",
              "| set | against ACN, all 7 | against ACN, 6 knots | against crossing number, "

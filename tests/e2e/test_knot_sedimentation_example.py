@@ -130,5 +130,5 @@ def test_knot_checks_come_from_the_runs_own_record(mf, tmp_path):
     rows = list(csv.DictReader((sweep / "knot_checks.csv").open()))
     assert rows[1]["knot_type_changes"] == "70:+3_1>+7_5"
     # the runs' record wins over summary.csv's (where replica 1 of each knot ends as 0_1)
-    assert mf.knot_changes(sweep)[("", "3_1")] == (1, "+3_1;+7_5")
-    assert mf.knot_changes(sweep)[("", "0_1")] == (0, "0_1")
+    assert mf.knot_changes(sweep)[("", "3_1")] == (1, 1, "+3_1;+7_5")
+    assert mf.knot_changes(sweep)[("", "0_1")] == (0, 1, "0_1")
