@@ -243,13 +243,15 @@ def swirl_spectrum(times, rho, z) -> Spectrum:
     Returns
     -------
     Spectrum
-        Its peak's ``|frequency|`` is ``1/tau_swirl``; frequencies below one Fourier bin
-        (slow drifts) are excluded from the search.
+        Its peak's ``|frequency|`` is ``1/tau_swirl``, searched over ``|f| >= 2 / T`` (two
+        periods in the window of length T), the band the swirl is detected in
+        (:mod:`knotmm.analysis.detect`): a slower line (a drift, or the slow wobble of a
+        torus at finite temperature) is no swirl period this window can measure.
     """
     t = np.asarray(times, dtype=np.float64)
     signal = (z - z.mean(axis=0)) + 1j * (rho - rho.mean(axis=0))
     length = len(t) * (t[1] - t[0])
-    return line_spectrum(signal, t, min_frequency=1.0 / length, name="swirl")
+    return line_spectrum(signal, t, min_frequency=2.0 / length, name="swirl")
 
 
 def rotation_spectrum(times, alpha) -> Spectrum:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from knotmm.analysis import (
+    analyze,
     cylindrical,
     fit_vortex_knot,
     rotation_spectrum,
@@ -15,6 +16,7 @@ from knotmm.analysis import (
 )
 from knotmm.analysis.spectra import line_spectrum
 from knotmm.analysis.synthetic import vortex_knot_positions
+from knotmm.io.run_data import RunData
 
 
 @pytest.mark.parametrize("frequency", [0.0437, -0.0712, 0.00291])
@@ -93,3 +95,24 @@ def test_fit_and_collapse(mirror, tau_rot):
         (sc.z, np.cos(angle)),
     ):
         assert np.sqrt(np.mean((values - curve) ** 2)) < 0.1
+
+
+def test_a_slow_tilt_wobble_is_not_the_swirl_period():
+    """A torus whose axis wobbles slowly (period 40 tau_d, 0.12 rad; what a torus does at
+    finite temperature) in a 50 tau_d window: the lab-frame swirl signal's strongest line is
+    the wobble, slower than half the window; tau_swirl is the swirl's 7 tau_d (the period
+    the body frame sees), searched in the band the swirl is detected in (two periods)."""
+    dt = 0.25
+    times = np.arange(201) * dt
+    x = vortex_knot_positions(times, rho0=4.0, swirl_amplitude=0.1, tau_swirl=7.0,
+                              tau_rot=400.0, z_com=-7.0 * times, noise=0.005)
+    tilt = 0.12 * np.sin(2 * np.pi * times / 40.0)[:, None]  # about the x axis, rad
+    com = x.mean(axis=1, keepdims=True)
+    r = x - com
+    y = np.cos(tilt) * r[..., 1] - np.sin(tilt) * r[..., 2]
+    z = np.sin(tilt) * r[..., 1] + np.cos(tilt) * r[..., 2]
+    x = com + np.stack([r[..., 0], y, z], axis=-1)
+    d = analyze(RunData.from_arrays(x, dt, {"knot": {"p": 2, "q": 3}}), knot_samples=0,
+                t_from=0, t_to=50).to_dict()
+    assert d["swirl_detected"]
+    assert d["tau_swirl"] == pytest.approx(7.0, rel=0.01)
