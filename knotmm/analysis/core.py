@@ -228,13 +228,18 @@ def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_sam
     body_swirl = swirl_spectrum(t_w, regime.body.rho[sel], regime.body.z[sel])
     body_rot = rotation_spectrum(t_w, regime.body.phi[sel])
     lab_ok = detected and not regime.tilted  # the lab-frame swirl is the swirl
+    period_ok = lab_ok  # and its period is measured in this window
     length = t_w[-1] - t_w[0] + data.frame_interval
     if not detected:
         notes.append(regime.detection.reason + ": tau_swirl and C are not reported")
     elif lab_ok and swirl.peak.period > length / 2:
+        # the strongest lab-frame line sits at the band's slow edge: the foot of something
+        # slower (a wobble of the torus axis), not the swirl the body frame detected
+        period_ok = False
         notes.append(
-            f"the window ({length:g} tau_d) holds fewer than two swirl periods: tau_swirl is "
-            "poorly determined"
+            f"the lab-frame swirl spectrum peaks at the slow edge of its band "
+            f"({swirl.peak.period:.4g} tau_d, more than half the {length:g} tau_d window; the "
+            f"body frame's line: {body_swirl.peak.period:.4g} tau_d): tau_swirl not measured"
         )
     if rot.peak.period > length and not regime.tilted:
         notes.append(
@@ -310,8 +315,8 @@ def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_sam
         major_radius_std=rho0_std,
         major_radius_geometric=rho_geo,
         swirl_amplitude=amplitude,
-        tau_swirl=swirl.peak.period if lab_ok else float("nan"),
-        tau_swirl_uncertainty=swirl.peak.period_uncertainty if lab_ok else float("nan"),
+        tau_swirl=swirl.peak.period if period_ok else float("nan"),
+        tau_swirl_uncertainty=swirl.peak.period_uncertainty if period_ok else float("nan"),
         tau_rot=rot.peak.period if not regime.tilted else float("nan"),
         tau_rot_uncertainty=rot.peak.period_uncertainty if not regime.tilted else float("nan"),
         rotation_frequency=rot.peak.frequency,

@@ -116,3 +116,24 @@ def test_a_slow_tilt_wobble_is_not_the_swirl_period():
                 t_from=0, t_to=50).to_dict()
     assert d["swirl_detected"]
     assert d["tau_swirl"] == pytest.approx(7.0, rel=0.01)
+
+
+def test_a_line_at_the_slow_edge_of_the_band_is_not_measured():
+    """A faster wobble (period 30 tau_d, band edge 25 tau_d in a 50 tau_d window) whose
+    foot is the lab-frame spectrum's strongest point in the band: tau_swirl is not measured
+    (NaN, with a note naming the body frame's 7 tau_d), the swirl still detected."""
+    dt = 0.25
+    times = np.arange(201) * dt
+    x = vortex_knot_positions(times, rho0=4.0, swirl_amplitude=0.1, tau_swirl=7.0,
+                              tau_rot=400.0, z_com=-7.0 * times, noise=0.005)
+    tilt = 0.2 * np.sin(2 * np.pi * times / 30.0)[:, None]
+    com = x.mean(axis=1, keepdims=True)
+    r = x - com
+    y = np.cos(tilt) * r[..., 1] - np.sin(tilt) * r[..., 2]
+    z = np.sin(tilt) * r[..., 1] + np.cos(tilt) * r[..., 2]
+    x = com + np.stack([r[..., 0], y, z], axis=-1)
+    d = analyze(RunData.from_arrays(x, dt, {"knot": {"p": 2, "q": 3}}), knot_samples=0,
+                t_from=0, t_to=50).to_dict()
+    assert d["swirl_detected"]
+    assert d["tau_swirl"] is None or np.isnan(d["tau_swirl"])
+    assert any("tau_swirl not measured" in n for n in d["notes"])

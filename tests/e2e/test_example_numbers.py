@@ -51,4 +51,9 @@ def test_ensemble_n60_replica_0_reproduces_its_readme_row(tmp_path):
         assert d[key] is not None, column
         assert f"{d[key]:.{_digits(printed)}f}" == printed, (column, d[key], printed)
     start, end = (float(v) for v in re.findall(r"[\d.]+", row["window (tau_d)"]))
-    assert d["window"][0] == pytest.approx(start) and d["window"][1] == pytest.approx(end)
+    # the window's end is the collapse, whose moment moves by a frame (0.5 tau_d) between
+    # machines (measured: 137.0 where the README was run, 136.5 on another 2-core machine,
+    # every printed number the same): one frame of slack
+    frame = data["output"]["frame_interval"]
+    assert d["window"][0] == pytest.approx(start, abs=frame)
+    assert d["window"][1] == pytest.approx(end, abs=frame)
