@@ -97,23 +97,29 @@ def test_fit_and_collapse(mirror, tau_rot):
         assert np.sqrt(np.mean((values - curve) ** 2)) < 0.1
 
 
+def _wobbling_torus(wobble_period: float, tilt: float) -> dict:
+    """A T(2,3) vortex knot (swirl 7 tau_d, 0.1 d) whose axis wobbles about x by ``tilt`` rad
+    with ``wobble_period`` (tau_d), frames 0.25 tau_d apart, analysed over 0-50 tau_d."""
+    dt = 0.25
+    times = np.arange(201) * dt
+    x = vortex_knot_positions(times, rho0=4.0, swirl_amplitude=0.1, tau_swirl=7.0,
+                              tau_rot=400.0, z_com=-7.0 * times, noise=0.005)
+    angle = tilt * np.sin(2 * np.pi * times / wobble_period)[:, None]
+    com = x.mean(axis=1, keepdims=True)
+    r = x - com
+    y = np.cos(angle) * r[..., 1] - np.sin(angle) * r[..., 2]
+    z = np.sin(angle) * r[..., 1] + np.cos(angle) * r[..., 2]
+    x = com + np.stack([r[..., 0], y, z], axis=-1)
+    return analyze(RunData.from_arrays(x, dt, {"knot": {"p": 2, "q": 3}}), knot_samples=0,
+                   t_from=0, t_to=50).to_dict()
+
+
 def test_a_slow_tilt_wobble_is_not_the_swirl_period():
     """A torus whose axis wobbles slowly (period 40 tau_d, 0.12 rad; what a torus does at
     finite temperature) in a 50 tau_d window: the lab-frame swirl signal's strongest line is
     the wobble, slower than half the window; tau_swirl is the swirl's 7 tau_d (the period
     the body frame sees), searched in the band the swirl is detected in (two periods)."""
-    dt = 0.25
-    times = np.arange(201) * dt
-    x = vortex_knot_positions(times, rho0=4.0, swirl_amplitude=0.1, tau_swirl=7.0,
-                              tau_rot=400.0, z_com=-7.0 * times, noise=0.005)
-    tilt = 0.12 * np.sin(2 * np.pi * times / 40.0)[:, None]  # about the x axis, rad
-    com = x.mean(axis=1, keepdims=True)
-    r = x - com
-    y = np.cos(tilt) * r[..., 1] - np.sin(tilt) * r[..., 2]
-    z = np.sin(tilt) * r[..., 1] + np.cos(tilt) * r[..., 2]
-    x = com + np.stack([r[..., 0], y, z], axis=-1)
-    d = analyze(RunData.from_arrays(x, dt, {"knot": {"p": 2, "q": 3}}), knot_samples=0,
-                t_from=0, t_to=50).to_dict()
+    d = _wobbling_torus(40.0, 0.12)
     assert d["swirl_detected"]
     assert d["tau_swirl"] == pytest.approx(7.0, rel=0.01)
 
@@ -122,18 +128,7 @@ def test_a_line_at_the_slow_edge_of_the_band_is_not_measured():
     """A faster wobble (period 30 tau_d, band edge 25 tau_d in a 50 tau_d window) whose
     foot is the lab-frame spectrum's strongest point in the band: tau_swirl is not measured
     (NaN, with a note naming the body frame's 7 tau_d), the swirl still detected."""
-    dt = 0.25
-    times = np.arange(201) * dt
-    x = vortex_knot_positions(times, rho0=4.0, swirl_amplitude=0.1, tau_swirl=7.0,
-                              tau_rot=400.0, z_com=-7.0 * times, noise=0.005)
-    tilt = 0.2 * np.sin(2 * np.pi * times / 30.0)[:, None]
-    com = x.mean(axis=1, keepdims=True)
-    r = x - com
-    y = np.cos(tilt) * r[..., 1] - np.sin(tilt) * r[..., 2]
-    z = np.sin(tilt) * r[..., 1] + np.cos(tilt) * r[..., 2]
-    x = com + np.stack([r[..., 0], y, z], axis=-1)
-    d = analyze(RunData.from_arrays(x, dt, {"knot": {"p": 2, "q": 3}}), knot_samples=0,
-                t_from=0, t_to=50).to_dict()
+    d = _wobbling_torus(30.0, 0.2)
     assert d["swirl_detected"]
     assert d["tau_swirl"] is None or np.isnan(d["tau_swirl"])
     assert any("tau_swirl not measured" in n for n in d["notes"])
