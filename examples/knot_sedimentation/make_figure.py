@@ -139,15 +139,15 @@ def write_knot_checks(sweep: Path, out: Path) -> Path:
     ``knot_type_changes``); the columns are those, the changes as ``time:from>to`` joined
     by ``;``. A frame topoly cannot name (``unknown``) is no change.
     """
-    import tomllib
+    from knotmm.io.rundir import RUN_FILE, read_facts
 
     out.mkdir(parents=True, exist_ok=True)
     path = out / "knot_checks.csv"
     with path.open("w", newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow(CHECK_COLUMNS)
-        for run_toml in sorted(sweep.glob("*/run.toml")):
-            facts = tomllib.loads(run_toml.read_text()).get("knotmm", {})
+        for run_toml in sorted(sweep.glob(f"*/{RUN_FILE}")):
+            facts = read_facts(run_toml.parent)
             changes = ";".join(f"{c['time']:g}:{c['from']}>{c['to']}"
                                for c in facts.get("knot_type_changes", []))
             writer.writerow([run_toml.parent.name, facts.get("knot_type_start", ""),
