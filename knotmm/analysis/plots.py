@@ -13,6 +13,7 @@ import numpy as np
 
 from knotmm.analysis.fit import scaled_coordinates
 from knotmm.analysis.result import AnalysisResult
+from knotmm.io.atomic import write_atomic
 from knotmm.plotstyle import label as axis_label
 from knotmm.plotstyle import plain_ticks
 
@@ -454,5 +455,7 @@ def save_plots(result: AnalysisResult, directory, dpi: int = 150) -> list[Path]:
 
 
 def _save(fig, path: Path, dpi: int) -> Path:
-    fig.savefig(path, dpi=dpi)
+    """Write ``fig`` to ``path`` as a PNG, whole or not at all (a full disk leaves the earlier
+    file, or none, under that name: never an empty or cut one)."""
+    write_atomic(path, lambda fh: fig.savefig(fh, dpi=dpi, format="png"))
     return path

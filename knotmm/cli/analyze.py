@@ -76,6 +76,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="frames checked with topoly for a change of knot type "
         "(0: skip knot identification; default 40)",
     )
+    parser.add_argument(
+        "--include-partial",
+        action="store_true",
+        help="sweep directory or replica set: also average the runs that stopped early "
+        "(fault, interrupted) or are still running (default: left out and named)",
+    )
     parser.set_defaults(execute=execute)
     return parser
 
@@ -104,6 +110,8 @@ def execute(args) -> int:
 
     if is_sweep_directory(args.run):
         return _execute_sweep(args)
+    if args.include_partial:
+        logger.warning("--include-partial is for a sweep directory or a replica set; ignored")
     _check_output(args)
     try:
         result = analyze_run(
@@ -144,6 +152,16 @@ def _check_output(args) -> None:
         check_output_directory(run.parent, "RUN")
 
 
+def _check_sweep_output(root) -> None:
+    """Check before any analysis that the sweep directory and its runs can take files (exit 2,
+    one line naming the place), as :func:`_check_output` for a run."""
+    from knotmm.io.rundir import RUN_FILE, check_output_directory
+
+    check_output_directory(root, "RUN")
+    for run in sorted(p for p in root.iterdir() if (p / RUN_FILE).is_file()):
+        check_output_directory(run, "RUN")
+
+
 #: Columns of the per-point table printed for a sweep directory.
 SWEEP_COLUMNS = (
     "sedimentation_velocity",
@@ -171,7 +189,8 @@ def _execute_sweep(args) -> int:
 
     if args.out is not None or args.frame_interval is not None or args.topology is not None:
         logger.warning("--out, --frame-interval and --topology are ignored for a sweep")
-    summary = analyze_sweep(args.run, **_options(args))
+    _check_sweep_output(Path(args.run))
+    summary = analyze_sweep(args.run, include_partial=args.include_partial, **_options(args))
     rows = [("point", "n", *SWEEP_COLUMNS)]
     for name, point in summary["points"].items():
         stats = point["statistics"]
@@ -182,6 +201,10 @@ def _execute_sweep(args) -> int:
     for row in rows:
         print("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip())
     for name, point in summary["points"].items():
+        for run, why in point["excluded"].items():
+            print(f"note: {name}: {run} left out: {why}")
+        for run, why in point.get("partial", {}).items():
+            print(f"note: {name}: {run} averaged although unfinished: {why}")
         for run, error in point["failed"].items():
             print(f"note: {name}: {run} failed: {error}")
     print(f"wrote {REPLICAS_FILE} (mean +- standard error over replicas) in {Path(args.run)}")
