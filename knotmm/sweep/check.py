@@ -3,11 +3,11 @@
 ``knotmm sweep --dry-run`` runs nothing, writes nothing, and reports every point that
 ``knotmm run`` would refuse (too few beads for the knot, a bad integrator for the Peclet
 number, a platform that is not there, ...), with the same one-line message. The checks are
-the run path's own functions, in its order: the integrator
-(:func:`knotmm.dynamics.registry.integrator_from_config`), the template
-(:func:`knotmm.shapes.build_template`: bonds, steric distances, knot type) and the
-Simulation (:meth:`knotmm.engine.simulation.Simulation.from_config`: model, platform,
-starting positions). See ``docs/architecture.md``.
+the run path's own: :func:`knotmm.workflow.build_run`, which :func:`knotmm.workflow.run`
+calls before it writes anything (the integrator, the template with its chains:
+``[[chains]]``, links and open filaments, bonds, steric distances, knot type; then the
+Simulation on that layout: model, platform, starting positions). See
+``docs/architecture.md``.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from knotmm.config import RunConfig, resolve_stepping
+from knotmm.config import RunConfig
 from knotmm.errors import KnotmmError
 from knotmm.sweep.plan import SweepPoint
 from knotmm.sweep.point import error_text
@@ -57,17 +57,9 @@ def check_config(cfg: RunConfig) -> None:
     ConfigError, TemplateError, TrajectoryFileError
         The error :func:`knotmm.workflow.run` raises for this configuration before it starts.
     """
-    from knotmm.dynamics.registry import integrator_from_config
-    from knotmm.engine.simulation import Simulation
-    from knotmm.shapes import build_template
+    from knotmm.workflow import build_run
 
-    name, timestep = resolve_stepping(cfg)
-    cfg = cfg.replace({"run.integrator": name, "run.timestep": timestep})
-    integrator_from_config(cfg)  # as run(): the integrator is checked before the template
-    template = build_template(cfg)
-    if template.resolved:
-        cfg = cfg.replace(template.resolved)
-    Simulation.from_config(cfg, template.positions)
+    build_run(cfg, identify="now")  # run()'s own build: [[chains]], links, open filaments
 
 
 def check_points(points: Sequence[SweepPoint]) -> list[PointCheck]:

@@ -3,6 +3,7 @@
 * :func:`expand` turns ``{key: [values...]}`` into points (``"grid"`` or ``"zip"``);
 * :func:`replica_seeds` (:mod:`knotmm.replicas`) derives the seeds of ``seeds = K``
   replicas with ``numpy.random.SeedSequence.spawn``, so a replica's seed does not depend on K;
+* :func:`replicas_as_seeds` runs a sweep's ``run.replicas = K`` as its ``seeds = K``;
 * :func:`point_name` names a point's directory from its swept values;
 * :func:`plan_point` decides, from a point's run directory, whether to skip it (finished,
   same parameters), only analyse it, resume it from its checkpoint, or run it from the start.
@@ -41,6 +42,7 @@ __all__ = [
     "plan_point",
     "point_name",
     "replica_seeds",
+    "replicas_as_seeds",
 ]
 
 log = logging.getLogger(__name__)
@@ -143,6 +145,72 @@ def point_name(values: Mapping[str, Any], replica: int | None = None) -> str:
     return ",".join(parts) if parts else "point"
 
 
+def replicas_as_seeds(
+    base: RunConfig, values: Mapping[str, Any], seeds: int | None, seed: int | None
+) -> tuple[int | None, RunConfig, str | None]:
+    """A sweep's ``run.replicas = K``, run as its own ensemble: ``seeds = K``.
+
+    Every point then runs K times, replica k in ``<point>,replica=k``, a run with
+    ``run.replicas = 1`` and the ``run.seed`` that replica k of ``knotmm run`` gets
+    (:func:`replica_seeds` of ``run.seed``), analysed and summarised as a ``seeds = K``
+    ensemble.
+
+    Parameters
+    ----------
+    base : RunConfig
+        The sweep's run configuration (``[sweep.set]`` and ``--set`` applied).
+    values : mapping
+        The swept keys and their lists.
+    seeds, seed : int or None
+        The ``[sweep]`` options ``seeds`` and ``seed``.
+
+    Returns
+    -------
+    seeds : int or None
+        The ensemble size: ``run.replicas`` when it is above 1, else ``seeds`` as given.
+    base : RunConfig
+        With ``run.replicas = 1`` (what each point's run does).
+    note : str or None
+        What was done, for the user (None when ``run.replicas = 1``).
+
+    Raises
+    ------
+    ConfigError
+        One line: ``run.replicas`` swept, or set together with another ``seeds``, another
+        ``seed`` than ``run.seed``, or a swept ``run.seed``.
+    """
+    if "run.replicas" in values:
+        raise ConfigError(
+            f"[sweep] run.replicas = {values['run.replicas']!r}: run.replicas cannot be swept; "
+            f"set seeds = K in [sweep] to run K replicas of every point"
+        )
+    count = base["run.replicas"]
+    if count == 1:
+        return seeds, base, None
+    if seeds is not None and seeds != count:
+        raise ConfigError(
+            f"[sweep] seeds = {seeds} and run.replicas = {count}: a sweep runs run.replicas as "
+            f"its seeds = K ensemble; drop one of them, or give both the same K"
+        )
+    base_seed = base["run.seed"]
+    if seed is not None and seed != base_seed:
+        raise ConfigError(
+            f"[sweep] seed = {seed} and run.replicas = {count}: the replicas of run.replicas "
+            f"take their seeds from run.seed = {base_seed}; drop seed, or set run.seed = {seed}"
+        )
+    if "run.seed" in values:
+        raise ConfigError(
+            f"[sweep] sweeps run.seed and sets run.replicas = {count}: each replica gets its "
+            f"own run.seed; drop run.seed from [sweep], or set run.replicas = 1"
+        )
+    note = (
+        f"run.replicas = {count}: every point runs {count} times, in <point>,replica=0 ... "
+        f"replica={count - 1}, each a run with run.replicas = 1 and the run.seed of that "
+        f"replica of `knotmm run` (from run.seed = {base_seed}), summarised as seeds = {count}"
+    )
+    return count, base.replace({"run.replicas": 1}), note
+
+
 def _stored_config_matches(point: SweepPoint, directory: Path) -> bool:
     """Whether the run in ``directory`` was made with this point's parameters."""
     try:
@@ -153,13 +221,29 @@ def _stored_config_matches(point: SweepPoint, directory: Path) -> bool:
     # a run file records the integrator and step it used ("auto" and an unset step resolved)
     name, timestep = resolve_stepping(point.config)
     wanted["run"].update(integrator=name, timestep=timestep)
-    for table, keys in wanted.items():
-        for key, value in keys.items():
-            if table == "output" and key == "directory":
-                continue
-            if stored.get(table, {}).get(key) != value:
-                return False
-    return True
+    wanted.get("output", {}).pop("directory", None)  # the sweep directory may have moved
+    return _recorded(wanted, stored)
+
+
+def _recorded(wanted: Any, stored: Any) -> bool:
+    """Whether ``stored`` (a run.toml's value) records ``wanted`` (a run file's value).
+
+    Tables (``[model]``, each ``[[chains]]`` entry) match when every wanted key is stored with
+    a matching value: a run.toml also records keys resolved at the start (``tolerance``, a
+    chain's ``major_radius``), which the sweep file leaves unset. Arrays (``[[chains]]``,
+    ``offset``) match entry by entry, with the same length; anything else by equality.
+    """
+    if isinstance(wanted, Mapping):
+        return isinstance(stored, Mapping) and all(
+            key in stored and _recorded(value, stored[key]) for key, value in wanted.items()
+        )
+    if isinstance(wanted, (list, tuple)):
+        return (
+            isinstance(stored, (list, tuple))
+            and len(stored) == len(wanted)
+            and all(_recorded(w, s) for w, s in zip(wanted, stored, strict=True))
+        )
+    return stored == wanted
 
 
 def plan_point(point: SweepPoint, directory: Path, reanalyze: bool) -> tuple[str, dict | None]:

@@ -23,7 +23,8 @@ The ``[sweep]`` table also takes these options (names without a dot):
 ``mode``           ``"grid"`` (default: every combination, the last key varying fastest) or
                    ``"zip"`` (the i-th values of every list together; equal lengths)
 ``seeds``          ``K``: run every point K times, replica k with ``run.seed`` set to
-                   ``SeedSequence(seed).spawn(K)[k]`` (the same K seeds at every point)
+                   ``SeedSequence(seed).spawn(K)[k]`` (the same K seeds at every point);
+                   ``[run] replicas = K`` runs as ``seeds = K`` (each run ``replicas = 1``)
 ``seed``           the base seed of ``seeds``; default ``run.seed``
 ``x``              the swept key on the x axis of the plots (default: the first key; in zip
                    mode with several keys, ``"point"``: one tick per point)
@@ -57,13 +58,20 @@ import difflib
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from knotmm.config import RunConfig, read_toml, split_key
 from knotmm.errors import ConfigError
-from knotmm.sweep.plan import SweepPoint, expand, format_value, point_name, replica_seeds
+from knotmm.sweep.plan import (
+    SweepPoint,
+    expand,
+    format_value,
+    point_name,
+    replica_seeds,
+    replicas_as_seeds,
+)
 
 __all__ = [
     "DEFAULT_DIRECTORY",
@@ -244,6 +252,8 @@ class Sweep:
                 if name in names[:i] and options.mode == "grid":
                     raise ConfigError(f"[sweep] {dotted} lists {entries[i]!r} twice")
             values[dotted] = list(entries)
+        count, base, replicas_note = replicas_as_seeds(base, values, options.seeds, options.seed)
+        options = replace(options, seeds=count)
         if options.seeds is not None and "run.seed" in values:
             raise ConfigError("[sweep] sweeps run.seed and sets seeds = K: use one of the two")
         if not values and options.seeds is None:
@@ -286,11 +296,13 @@ class Sweep:
                 "[sweep] two points get the same directory name; make values distinct"
             )
 
-        notes = []
+        notes = [replicas_note] if replicas_note else []
         if resolved and "knot.beads" in values and "knot.major_radius" not in values:
             # run.toml holds the radius resolved for its own bead count: let it follow N
             data.get("knot", {}).pop("major_radius", None)
-            base = RunConfig.from_dict(data).replace({"output.directory": str(sweep_dir)})
+            base = RunConfig.from_dict(data).replace(
+                {"output.directory": str(sweep_dir), "run.replicas": base["run.replicas"]}
+            )
             points = [
                 SweepPoint(p.index, p.name, p.values, p.replica, _without_radius(p.config))
                 for p in points
@@ -528,10 +540,15 @@ def describe_points(sweep: Sweep, errors: Mapping[str, str] | None = None) -> st
         listing, and counted at its end. Without it the points are only listed.
     """
     given = f"; every point with {describe_set(sweep.overrides)}" if sweep.overrides else ""
-    lines = [f"{len(sweep.points)} points in {sweep.directory} ({sweep.options.mode}{given}):"]
+    k = sweep.options.seeds
+    ensemble = f"; {len(sweep.points) // k} combinations x {k} replicas" if k else ""
+    lines = [
+        f"{len(sweep.points)} points in {sweep.directory} ({sweep.options.mode}{ensemble}{given}):"
+    ]
     for p in sweep.points:
         mark = "  cannot run" if errors and p.name in errors else ""
-        lines.append(f"  {p.index:4d}  {p.name}{mark}")
+        seed = f"  (run.seed = {p.values['run.seed']})" if p.replica is not None else ""
+        lines.append(f"  {p.index:4d}  {p.name}{seed}{mark}")
     if errors is not None:
         n = len(sweep.points)
         lines.append(
