@@ -14,7 +14,13 @@ go on as if it had never stopped (``docs/architecture.md``):
 ``velocity``         optional, shape (n_beads, 3): the velocity an integrator that reuses its
                      last stage (FSAL) holds for the current positions, so that a resumed
                      run does not evaluate it again
+``array_<name>``     optional: the caller's arrays (a run's knot checks still under way:
+                     the positions they were sent, float64, shape (k, n_beads, 3))
 ==================== ======================================================================
+
+A run keeps the record of its knot-type and linking-number checks in ``counters``
+(``topology``, :func:`knotmm.engine.check_record.checks_record`), so that a resumed run's
+record is the one of the state it goes on from.
 
 :meth:`knotmm.engine.simulation.Simulation.saveCheckpoint` and ``loadCheckpoint`` write and
 read it through :func:`write_checkpoint` and :func:`read_checkpoint`. It is written
@@ -45,6 +51,9 @@ __all__ = [
     "write_checkpoint",
 ]
 
+#: The prefix of the caller's arrays in a checkpoint file (``array_<name>``).
+ARRAY_PREFIX = "array_"
+
 
 def write_checkpoint(path, state: dict) -> None:
     """Write a checkpoint atomically.
@@ -56,7 +65,8 @@ def write_checkpoint(path, state: dict) -> None:
         ``positions``, ``time``, ``step``, ``evaluations``, ``integrator`` (name),
         ``integrator_state`` (dict), ``counters`` (dict), and optionally ``velocity``;
         the plugin engine adds ``engine`` (``"plugin"``) and ``openmm_checkpoint`` (the bytes
-        of ``Context.createCheckpoint()``).
+        of ``Context.createCheckpoint()``); ``arrays`` (optional dict: name -> float64 array)
+        holds the caller's arrays.
     """
     payload = {
         "positions": np.asarray(state["positions"], dtype=np.float64),
@@ -72,6 +82,8 @@ def write_checkpoint(path, state: dict) -> None:
     if state.get("openmm_checkpoint") is not None:
         payload["engine"] = np.array(state["engine"])
         payload["openmm_checkpoint"] = np.frombuffer(state["openmm_checkpoint"], dtype=np.uint8)
+    for name, value in (state.get("arrays") or {}).items():
+        payload[ARRAY_PREFIX + name] = np.asarray(value, dtype=np.float64)
     write_atomic(Path(path), lambda fh: np.savez(fh, **payload))
 
 
@@ -84,7 +96,8 @@ def read_checkpoint(path) -> dict:
         ``positions`` (n_beads, 3) float64, ``time``, ``step``, ``evaluations``,
         ``integrator`` (name), ``integrator_state`` (dict), ``counters`` (dict) and
         ``velocity`` (n_beads, 3) or None; ``engine`` (``"python"`` when the file does not
-        say) and ``openmm_checkpoint`` (bytes, or None).
+        say), ``openmm_checkpoint`` (bytes, or None) and ``arrays`` (dict: name -> float64
+        array; empty when the file holds none).
     """
     path = Path(path)
     if not path.exists():
@@ -107,6 +120,8 @@ def read_checkpoint(path) -> dict:
                 "engine": str(data["engine"]) if "engine" in data.files else "python",
                 "openmm_checkpoint": (data["openmm_checkpoint"].tobytes()
                                       if "openmm_checkpoint" in data.files else None),
+                "arrays": {name[len(ARRAY_PREFIX):]: np.array(data[name], dtype=np.float64)
+                           for name in data.files if name.startswith(ARRAY_PREFIX)},
             }
     except Exception as exc:  # noqa: BLE001 - any damage means the same to the user
         raise TrajectoryFileError(
@@ -148,18 +163,29 @@ class CheckpointReporter(TimeScheduled):
         written, ...), given the index of the next periodic checkpoint.
     first_index : int
         Index of the next checkpoint (checkpoint k is at ``k * interval``).
+    arrays : callable, optional
+        ``arrays()`` returns the caller's arrays to store with the state (name -> float64
+        array; a run's knot checks still under way), or None.
     """
 
-    def __init__(self, path, interval, counters, first_index=0):
+    def __init__(self, path, interval, counters, first_index=0, arrays=None):
         super().__init__(interval, first_index)
         self.path = Path(path)
         self._counters = counters
+        self._arrays = arrays
 
     def report(self, simulation, state) -> None:
-        simulation.saveCheckpoint(self.path, self._counters(self.index + 1))
+        self._save(simulation, self.index + 1)
         self.advance()
 
     def save_now(self, simulation) -> None:
         """Save the current state between periodic checkpoints (at a fault, or a stop asked
         for by a signal); the periodic schedule goes on unchanged after resume."""
-        simulation.saveCheckpoint(self.path, self._counters(self.index))
+        self._save(simulation, self.index)
+
+    def _save(self, simulation, next_checkpoint: int) -> None:
+        arrays = self._arrays() if self._arrays is not None else None
+        if arrays:
+            simulation.saveCheckpoint(self.path, self._counters(next_checkpoint), arrays=arrays)
+        else:
+            simulation.saveCheckpoint(self.path, self._counters(next_checkpoint))

@@ -6,12 +6,16 @@ later reports, so a run never waits for topoly. :func:`knot_watch` makes a run's
 template of :func:`knotmm.shapes.builder.build_template` (``identify="later"``);
 :func:`finish_checks` decides, at the end of a run, what is still waited for;
 :func:`record_checks` writes the outcome into run.toml's facts.
+
+The watches' record is kept in every checkpoint and a resumed run continues it from there
+(:mod:`knotmm.engine.check_record`).
 """
 
 from __future__ import annotations
 
 import time
 
+from knotmm.engine.check_record import KeptIdentifier, json_safe, restore_knot_watch
 from knotmm.engine.interrupt import raise_if_requested
 from knotmm.engine.schedule import TimeScheduled
 from knotmm.errors import ConfigError
@@ -43,10 +47,13 @@ class TemplateKnotCheck(TimeScheduled):
     ``template_knot_type`` unset, with a note.
     """
 
-    def __init__(self, template, facts: dict, interval: float):
+    def __init__(self, template, facts: dict, interval: float, recorded: dict | None = None):
         super().__init__(interval)
         self.template = template
         self.facts = facts
+        #: What the judged check wrote into ``facts`` (kept in the checkpoints: a resumed run
+        #: whose run.toml was written before the answer came restores it from there).
+        self.recorded: dict | None = recorded
 
     def report(self, simulation, state) -> None:
         self.advance()
@@ -59,9 +66,11 @@ class TemplateKnotCheck(TimeScheduled):
             return
         template.settle_knot_type(wait)
         if not template.knot_type_pending:
-            self.facts.update(template.facts)
+            recorded = dict(template.facts)
             if template.notes:
-                self.facts["notes"] = list(template.notes)
+                recorded["notes"] = list(template.notes)
+            self.recorded = json_safe(recorded)
+            self.facts.update(recorded)
         elif end:
             self.facts["notes"] = [*template.notes, "template knot type not checked: the run "
                                    "ended before topoly had started in the knot worker"]
@@ -80,50 +89,68 @@ def check_stop_on_change(cfg) -> None:
         )
 
 
-def knot_watch(sim, cfg, facts, counters, resuming):
-    """The knot-type reporter of a run, or None (checks off, or no topoly)."""
+def knot_watch(sim, cfg, facts, counters, record=None, positions=None):
+    """The knot-type reporter of a run, or None (checks off, or no topoly).
+
+    Parameters
+    ----------
+    sim : Simulation
+    cfg : RunConfig
+    facts : dict
+        run.toml's ``[knotmm]`` facts (``knot_type_watch`` is noted there).
+    counters : dict
+        The checkpoint's counters (``checks``: the index of the next check).
+    record : dict or None
+        A resumed run's record of its checks
+        (:func:`knotmm.engine.check_record.resumed_record`); None: a new run.
+    positions : ndarray or None
+        The record's positions of the checks under way, shape (k, n_beads, 3).
+    """
     from knotmm.engine.reporters import KnotTypeWatch
     from knotmm.knots.identify import topoly_available
+    from knotmm.knots.worker import IsolatedKnotIdentifier
 
     if not (cfg["run.topology_check_interval"] > 0 and topoly_available()):
         return None
-    identify = None
+    identify = IsolatedKnotIdentifier(chiral=True)
     if not sim.layout.is_single_ring:  # several chains: the type of each ring, in order
         if not any(sim.layout.closed):
             facts["knot_type_watch"] = "not made: an open chain has no knot type"
             return None
-        from knotmm.knots.worker import IsolatedKnotIdentifier
-
-        identify = ChainsIdentifier(IsolatedKnotIdentifier(chiral=True), sim.layout)
-        identify.start()
+        identify = ChainsIdentifier(identify, sim.layout)
         facts["knot_type_watch"] = ("the knot type of each closed chain, in chain order "
                                     "(\"+3_1, -3_1\"): a change of any one is a change")
-    expected = facts.get("knot_type") if resuming else None
+    identify = KeptIdentifier(identify)
+    identify.start()  # off the run's path: the worker imports topoly meanwhile
     watch = KnotTypeWatch(
         cfg["run.topology_check_interval"],
-        expected=expected,
         on_change=cfg["run.on_topology_change"],
         first_index=max(1, counters.get("checks", 0)),
         identify=identify,
     )
-    if expected is None:  # identified in the worker beside the run, not before it
+    state = (record or {}).get("knot")
+    if state is not None:
+        restore_knot_watch(watch, state, positions)
+    else:  # identified in the worker beside the run, not before it
         watch.identify_start(sim.positions)
     return watch
 
 
 def record_checks(facts: dict, watch) -> None:
+    """run.toml's record of the knot-type checks so far (the watch holds the whole run's,
+    a resumed run's included): ``knot_type_start``, ``knot_type``, ``knot_type_checks``,
+    ``knot_type_checks_dropped`` and every change in order (``knot_type_changes``)."""
     if watch.start_type is not None:
         facts["knot_type_start"] = watch.start_type
     facts["knot_type"] = watch.current
     # only checks that ran: not those whose worker failed (watch.skipped) or were dropped
-    facts["knot_type_checks"] = int(facts.get("knot_type_checks", 0)) + watch.checks
+    facts["knot_type_checks"] = watch.checks
     if watch.dropped:
-        facts["knot_type_checks_dropped"] = (
-            int(facts.get("knot_type_checks_dropped", 0)) + watch.dropped
-        )
-    changes = list(facts.get("knot_type_changes", []))
-    changes += [{"time": t, "from": str(a), "to": str(b)} for t, a, b in watch.changes]
-    facts["knot_type_changes"] = changes
+        facts["knot_type_checks_dropped"] = watch.dropped
+    else:
+        facts.pop("knot_type_checks_dropped", None)
+    facts["knot_type_changes"] = [{"time": t, "from": str(a), "to": str(b)}
+                                  for t, a, b in watch.changes]
 
 
 #: At the end of a run with checks still under way, how long to wait for the knot worker to
@@ -194,16 +221,22 @@ class LinkingWatch(TimeScheduled):
         In tau_d.
     layout : ChainLayout
     current : dict or None
-        ``{"A-B": Lk}`` to compare the first check with (run.toml's, on resume); None:
-        the first check sets it.
+        ``{"A-B": Lk}`` to compare the first check with (the numbers at the checkpoint, on
+        resume); None: the first check sets it.
     on_change : {"warn", "stop"}
     first_index : int
+
+    Attributes
+    ----------
+    start : dict or None
+        The numbers at the start of the run (run.toml's ``linking_numbers``).
     """
 
     def __init__(self, interval, layout, current=None, on_change="warn", first_index=0):
         super().__init__(interval, first_index)
         self.rings = [(cid, sl) for cid, sl, ring in
                       zip(layout.ids, layout.slices(), layout.closed, strict=True) if ring]
+        self.start: dict | None = None
         self.current = dict(current) if current else None
         self.on_change = on_change
         self.changes: list[tuple[float, str, int, int]] = []
@@ -252,31 +285,46 @@ class LinkingWatch(TimeScheduled):
         logging.getLogger(__name__).warning(message)
 
 
-def linking_watch(sim, cfg, facts, resuming) -> LinkingWatch | None:
-    """The linking-number reporter of a run with two or more closed chains, or None."""
+def linking_watch(sim, cfg, facts, record=None) -> LinkingWatch | None:
+    """The linking-number reporter of a run with two or more closed chains, or None.
+
+    ``record``: a resumed run's record of its checks
+    (:func:`knotmm.engine.check_record.resumed_record`), whose ``linking`` table the watch
+    continues; None: a new run, whose start numbers go into ``facts`` (``linking_numbers``).
+    """
     interval = cfg["run.topology_check_interval"]
     if interval <= 0 or sum(sim.layout.closed) < 2:
         return None
-    start = facts.get("linking_numbers") if resuming else None
-    watch = LinkingWatch(interval, sim.layout, current=start,
-                         on_change=cfg["run.on_topology_change"],
-                         first_index=int(sim.time / interval + 1e-9) + 1)
-    if start is None:
-        facts["linking_numbers"] = watch.numbers(sim.positions) or {}
-        watch.current = dict(facts["linking_numbers"]) or None
+    state = (record or {}).get("linking")
+    index = int(sim.time / interval + 1e-9) + 1
+    if state is not None and state.get("index") is not None and state.get("interval") == interval:
+        index = int(state["index"])  # a check due at the checkpoint's time is made there
+    watch = LinkingWatch(interval, sim.layout, on_change=cfg["run.on_topology_change"],
+                         first_index=index)
+    if state is None:
+        watch.start = watch.numbers(sim.positions) or {}
+        watch.current = dict(watch.start) or None
+    else:
+        watch.start = dict(state.get("start") or {})
+        watch.current = dict(state["current"]) if state.get("current") else None
+        watch.changes = [(float(t), pair, a, b) for t, pair, a, b in state.get("changes", [])]
+        watch.checks = int(state.get("checks", 0))
+        watch.skipped = int(state.get("skipped", 0))
+    facts["linking_numbers"] = dict(watch.start)
     return watch
 
 
 def record_linking(facts: dict, watch: LinkingWatch) -> None:
-    """run.toml's record of the linking checks: ``linking_checks``,
-    ``linking_numbers_now`` and every change in order (``linking_number_changes``)."""
-    facts["linking_checks"] = int(facts.get("linking_checks", 0)) + watch.checks
+    """run.toml's record of the linking checks so far (the watch holds the whole run's):
+    ``linking_numbers``, ``linking_checks``, ``linking_numbers_now`` and every change in
+    order (``linking_number_changes``)."""
+    facts["linking_numbers"] = dict(watch.start or {})
+    facts["linking_checks"] = watch.checks
     if watch.current is not None:
         facts["linking_numbers_now"] = dict(watch.current)
-    changes = list(facts.get("linking_number_changes", []))
-    changes += [{"time": t, "chains": pair, "from": int(a) if a is not None else None,
-                 "to": int(b)} for t, pair, a, b in watch.changes]
-    facts["linking_number_changes"] = changes
+    facts["linking_number_changes"] = [
+        {"time": t, "chains": pair, "from": int(a) if a is not None else None, "to": int(b)}
+        for t, pair, a, b in watch.changes]
 
 
 class ChainsIdentifier:

@@ -43,7 +43,13 @@ from openmm import unit
 from knotmm.dynamics.deterministic import RK23, Integrator
 from knotmm.engine.affinity import CorePin
 from knotmm.engine.checkpoint import read_checkpoint, write_checkpoint
-from knotmm.engine.engines import PYTHON, make_engine, resolve_engine
+from knotmm.engine.engines import (
+    PYTHON,
+    auto_platform,
+    make_engine,
+    platform_names,
+    resolve_engine,
+)
 from knotmm.engine.interrupt import raise_if_requested
 from knotmm.engine.openmm_state import state_array
 from knotmm.engine.schedule import landing_slack
@@ -57,22 +63,18 @@ __all__ = ["Simulation", "select_platform"]
 log = logging.getLogger(__name__)
 
 
-def select_platform(name: str, n_beads: int, threads: int = 1):
+def select_platform(name: str, n_beads: int, threads: int = 1, engine: str = PYTHON):
     """Resolve a platform name to ``(openmm.Platform, properties)``.
 
-    ``"auto"`` takes the CPU platform with ``threads`` threads (1 by default: for the chain
-    sizes of the study the force kernels are too small to gain from threads); for
-    ``n_beads >= 2000`` it prefers CUDA, then OpenCL, when they are available.
+    ``"auto"`` (:func:`knotmm.engine.engines.auto_platform`) takes the CPU platform with
+    ``threads`` threads (1 by default: for the chain sizes of the study the force kernels are
+    too small to gain from threads); only for the Python ``engine`` and ``n_beads >= 2000``
+    a device platform (CUDA, HIP, OpenCL) with a real device that OpenMM supports.
     """
-    available = [openmm.Platform.getPlatform(i).getName()
-                 for i in range(openmm.Platform.getNumPlatforms())]
+    available = platform_names()
+    pinned = {}
     if name == "auto":
-        name = "CPU" if "CPU" in available else "Reference"
-        if n_beads >= 2000:
-            for fast in ("CUDA", "OpenCL"):
-                if fast in available:
-                    name = fast
-                    break
+        name, pinned = auto_platform(n_beads, engine, available)
     if name not in available:
         raise ConfigError(
             f"run.platform = {name!r}: not available in this OpenMM installation "
@@ -84,6 +86,7 @@ def select_platform(name: str, n_beads: int, threads: int = 1):
         properties["Threads"] = str(int(threads))
     elif name in ("CUDA", "OpenCL", "HIP"):
         properties["Precision"] = "mixed"
+    properties.update(pinned)
     return platform, properties
 
 
@@ -159,7 +162,7 @@ class Simulation:
         self.layout = ChainLayout.ring(pos.shape[0]) if layout is None else layout
         self.topology = bead_topology(self.layout)
         self.integrator = RK23(0.01) if integrator is None else integrator
-        plat, props = select_platform(platform, pos.shape[0], threads)
+        plat, props = select_platform(platform, pos.shape[0], threads, engine)
         self._engine = make_engine(engine, self.integrator, threads=self.mobility_threads,
                                    n_beads=pos.shape[0])
         self.openmm_integrator = self._engine.openmm_integrator
@@ -246,11 +249,13 @@ class Simulation:
 
             template = build_template(cfg)
             positions, layout = template.positions, template.layout
-        if engine is None:
-            platform, _ = select_platform(cfg["run.platform"], np.shape(positions)[0],
-                                          cfg["run.threads"])
+        if engine is None:  # the engine first: "auto" takes the platform the engine can use
+            platform = cfg["run.platform"]
+            if platform != "auto":
+                platform = select_platform(platform, np.shape(positions)[0],
+                                           cfg["run.threads"])[0].getName()
             engine = resolve_engine(cfg["run.engine"], integrator.name, cfg["run.peclet"],
-                                    platform.getName())
+                                    platform)
         return cls(
             positions,
             ChainModel.from_config(cfg),
@@ -264,7 +269,8 @@ class Simulation:
         )
 
     # -- checkpoints (OpenMM's names) -------------------------------------------------------
-    def saveCheckpoint(self, path, extra: dict | None = None) -> None:  # noqa: N802
+    def saveCheckpoint(self, path, extra: dict | None = None,  # noqa: N802
+                       arrays: dict | None = None) -> None:
         """Save the whole state to ``path`` atomically (:mod:`knotmm.engine.checkpoint`).
 
         The file holds positions and time, and the engine's entries
@@ -273,13 +279,16 @@ class Simulation:
         velocity it holds for the current positions, if any; the plugin engine adds its
         name and the Context's checkpoint (``Context.createCheckpoint``: the plugin's step
         size, counters, cached velocity and noise stream). ``extra`` (a dict of JSON values:
-        a run's output counters, ...) rides along and is returned by :meth:`loadCheckpoint`.
+        a run's output counters, ...) rides along and is returned by :meth:`loadCheckpoint`;
+        ``arrays`` (name -> float64 array) too, read back by
+        :func:`knotmm.engine.checkpoint.read_checkpoint` (``arrays``).
         """
         write_checkpoint(path, {
             "positions": self.positions,
             "time": self.time,
             "counters": extra or {},
             **self._engine.checkpoint(self),
+            **({"arrays": arrays} if arrays else {}),
         })
 
     def loadCheckpoint(self, path) -> dict:  # noqa: N802
