@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from knotmm.io.run_data import RunData
-from knotmm.model.layout import CHAIN_IDS
+from knotmm.model.layout import chain_ids
 
 __all__ = ["analyze_system", "axis_angles", "centre_distances", "linking_series"]
 
@@ -154,7 +154,7 @@ def analyze_system(data: RunData, chains: list[tuple[slice, bool]], analyze_one:
         The system's (V of all beads, its shape), with ``extra["chains"]`` and
         ``extra["system"]``.
     """
-    ids = CHAIN_IDS[: len(chains)]
+    ids = chain_ids(len(chains))
     per_chain = []
     for k, (sl, closed) in enumerate(chains):
         result = analyze_one(_chain_data(data, k, sl, closed), t_from=t_from, t_to=t_to,

@@ -2,7 +2,11 @@
 
 Every knotmm PDB holds the Topology of :func:`knotmm.model.topology.bead_topology` (one chain
 of ``BEA`` residues, one atom ``B`` each, the ring closed from the last bead to the first),
-converted to mdtraj's form by :func:`mdtraj_topology`. Lengths are converted from model units
+converted to mdtraj's form by :func:`mdtraj_topology`. A system of several chains writes one
+PDB chain per chain: the one-character chain identifiers repeat after 62 chains
+(:attr:`~knotmm.model.layout.ChainLayout.pdb_chain_ids`), and each chain's unique name is its
+segment name (columns 73-76, which VMD reads as ``segname``). Chains are told apart by their
+CONECT records: :func:`read_layout` reads them back. Lengths are converted from model units
 (d) to Angstrom (1 d = 10 A) here, at the file boundary, and no unit cell is written (the
 runs are not periodic). See ``docs/model.md``.
 
@@ -24,11 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
+from knotmm.io.atomic import replacing
 from knotmm.model.layout import ChainLayout
 from knotmm.model.topology import bead_topology
 from knotmm.units import ANGSTROM_PER_D
 
-__all__ = ["mdtraj_topology", "write_pdb"]
+__all__ = ["mdtraj_topology", "read_layout", "write_pdb"]
 
 logger = logging.getLogger(__name__)
 
@@ -38,10 +43,70 @@ _NM_PER_ANGSTROM = 0.1
 
 def mdtraj_topology(n_beads: int | ChainLayout, closed: bool = True):
     """The bead Topology (:func:`knotmm.model.topology.bead_topology`, same arguments: a bead
-    count or a :class:`~knotmm.model.layout.ChainLayout`) as an mdtraj Topology."""
+    count or a :class:`~knotmm.model.layout.ChainLayout`) as an mdtraj Topology.
+
+    Several chains get their one-character PDB chain identifiers (repeating after 62) and
+    their unique names as segment names."""
     import mdtraj  # noqa: PLC0415 - heavy import kept out of module import
 
-    return mdtraj.Topology.from_openmm(bead_topology(n_beads, closed=closed))
+    top = mdtraj.Topology.from_openmm(bead_topology(n_beads, closed=closed))
+    if isinstance(n_beads, ChainLayout) and n_beads.n_chains > 1:
+        for chain, pdb_id, name in zip(top.chains, n_beads.pdb_chain_ids, n_beads.ids,
+                                       strict=True):
+            chain.chain_id = pdb_id
+            for residue in chain.residues:
+                residue.segment_id = name
+    return top
+
+
+def read_layout(path) -> ChainLayout | None:
+    """The chains of a knotmm PDB file, from its CONECT records.
+
+    Parameters
+    ----------
+    path : str or Path
+        A PDB file written by :func:`write_pdb` (a run's ``topology.pdb``).
+
+    Returns
+    -------
+    ChainLayout or None
+        The layout whose bonds are the file's (:meth:`ChainLayout.from_bonds`); ``None`` if
+        the file cannot be read, lists no bonds, or its bonds are not those of bead chains.
+    """
+    try:
+        lines = Path(path).read_text(errors="replace").splitlines()
+        serials, pairs = _atoms_and_conect(lines)
+    except (OSError, ValueError):
+        return None
+    index = {serial: i for i, serial in enumerate(serials)}
+    if len(index) != len(serials):  # serials repeat (past 99999 atoms): not readable here
+        return None
+    try:
+        bonds = [(index[a], index[b]) for a, b in pairs]
+    except KeyError:
+        return None
+    return ChainLayout.from_bonds(len(serials), bonds)
+
+
+def _atoms_and_conect(lines: list[str]) -> tuple[list[int], set[tuple[int, int]]]:
+    """The atom serials of the first model, in order, and the bonded serial pairs of the
+    CONECT records (each pair sorted)."""
+    serials = []  # TER records between chains take serials too
+    for line in lines:
+        if line.startswith(("ATOM", "HETATM")):
+            serials.append(int(line[6:11]))
+        if line.startswith("ENDMDL"):
+            break
+    bonds = set()
+    for line in lines:
+        if line.startswith("CONECT"):
+            fields = [line[i : i + 5] for i in range(6, len(line), 5)]
+            numbers = [int(f) for f in fields if f.strip()]
+            if numbers:
+                a = numbers[0]
+                for b in numbers[1:]:
+                    bonds.add((min(a, b), max(a, b)))
+    return serials, bonds
 
 
 def write_pdb(path, positions, closed: bool = True, layout: ChainLayout | None = None) -> None:
@@ -50,7 +115,7 @@ def write_pdb(path, positions, closed: bool = True, layout: ChainLayout | None =
     Parameters
     ----------
     path : str or Path
-        File to write (overwritten).
+        File to write (replaced atomically: its old content or the whole new one).
     positions : array_like, shape (n_beads, 3) or (n_frames, n_beads, 3), in d
         Bead coordinates in model units; written in Angstrom (x 10). Several frames are
         written as MODEL records.
@@ -89,29 +154,16 @@ def write_pdb(path, positions, closed: bool = True, layout: ChainLayout | None =
     xyz_nm = x * ANGSTROM_PER_D * _NM_PER_ANGSTROM
     traj = mdtraj.Trajectory(xyz_nm, top)  # no unit cell
     path = Path(path)
-    traj.save_pdb(os.fspath(path))
-    _check_conect(path, layout)
+    with replacing(path) as tmp:  # whole or not at all
+        traj.save_pdb(os.fspath(tmp))
+        _check_conect(tmp, layout)
     logger.debug("wrote %s: %d frames of %d beads", path, x.shape[0], n_beads)
 
 
 def _check_conect(path: Path, layout: ChainLayout) -> None:
     """Make sure the written file carries every bond; append CONECT lines if not."""
-    bonds = set()
     lines = path.read_text().splitlines()
-    atom_serials = []  # serial of each bead (TER records between chains take serials too)
-    for line in lines:
-        if line.startswith(("ATOM", "HETATM")):
-            atom_serials.append(int(line[6:11]))
-        if line.startswith("ENDMDL"):
-            break
-    for line in lines:
-        if line.startswith("CONECT"):
-            fields = [line[i : i + 5] for i in range(6, len(line), 5)]
-            serials = [int(f) for f in fields if f.strip()]
-            if serials:
-                a = serials[0]
-                for b in serials[1:]:
-                    bonds.add((min(a, b), max(a, b)))
+    atom_serials, bonds = _atoms_and_conect(lines)
     wanted = {
         tuple(sorted((atom_serials[i], atom_serials[j]))) for i, j in layout.bonds()
     }

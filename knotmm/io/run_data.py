@@ -182,7 +182,7 @@ class RunData:
         carbon = mdtraj.element.carbon
         atoms = []
         for c, (_first, count, _closed) in enumerate(self.chains()):
-            chain = top.add_chain(CHAIN_IDS[c] if c < len(CHAIN_IDS) else None)
+            chain = top.add_chain(CHAIN_IDS[c % len(CHAIN_IDS)])  # as topology.pdb: repeats
             for k in range(count):
                 residue = top.add_residue(BEAD_RESIDUE, chain, resSeq=k + 1)
                 atoms.append(top.add_atom(BEAD_ATOM, carbon, residue))

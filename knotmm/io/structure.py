@@ -2,7 +2,9 @@
 
 :func:`read_structure` reads frame ``frame`` of a PDB file (any MODEL) or of a DCD file with
 its topology PDB, converts Angstrom to d (1 d = 10 A, ``docs/model.md``) and says whether the
-file's topology closes the ring (a bond from the last bead to the first). A run directory
+file's topology closes the ring (a bond from the last bead to the first). A file whose bonds
+(CONECT records) make several chains (a run of a link or of ``[[chains]]``) is refused:
+its chains are never joined into one. A run directory
 stands for its ``trajectory.dcd``. DCD frame counts and truncation come from
 :func:`knotmm.io.dcd.dcd_layout`.
 
@@ -24,9 +26,10 @@ import numpy as np
 from knotmm.errors import TemplateError, TrajectoryFileError
 from knotmm.io.dcd import c_path, dcd_layout, quiet_c_stdout
 from knotmm.io.rundir import TOPOLOGY_FILE, TRAJECTORY_FILE
+from knotmm.model.layout import ChainLayout
 from knotmm.units import angstrom_to_d
 
-__all__ = ["Structure", "read_structure", "ring_closed"]
+__all__ = ["Structure", "read_structure", "ring_closed", "several_chains"]
 
 logger = logging.getLogger(__name__)
 
@@ -86,7 +89,8 @@ def read_structure(
         For a missing, empty, truncated or unreadable file, or a DCD whose atom count does
         not match its topology.
     TemplateError
-        For a frame that is not an integer or is out of range, or fewer than 4 beads.
+        For a frame that is not an integer or is out of range, fewer than 4 beads, or a
+        topology whose bonds make several chains (:func:`several_chains`).
     """
     import mdtraj  # noqa: PLC0415 - heavy import kept out of module import
 
@@ -122,7 +126,29 @@ def read_structure(
         raise TemplateError(
             f"{names['path']}={str(path)!r} holds {x.shape[0]} beads: a knot needs at least 4"
         )
+    several = several_chains(top)
+    if several is not None:
+        what = (several.describe() if several.n_chains <= 4 else
+                f"{several.n_beads} beads in {several.n_chains} chains")
+        raise TemplateError(
+            f"{names['path']}={str(path)!r} holds {several.n_chains} chains by the bonds of its "
+            f"topology ({what}): a file template is one chain, and knotmm does not join "
+            "chains; give a PDB or DCD file of one chain (e.g. a run of one ring)"
+        )
     return Structure(x, path, index, n_frames, ring_closed(top))
+
+
+def several_chains(top) -> ChainLayout | None:
+    """The chains of an mdtraj Topology whose bonds make more than one chain, else ``None``.
+
+    The chains are read from the bonds (CONECT records), never from the PDB chain
+    identifiers (they repeat past 62 chains):
+    :meth:`knotmm.model.layout.ChainLayout.from_bonds`. ``None`` also when the bonds are
+    absent or are not those of bead chains in atom order.
+    """
+    bonds = [(a.index, b.index) for a, b in top.bonds]
+    layout = ChainLayout.from_bonds(top.n_atoms, bonds) if bonds else None
+    return layout if layout is not None and layout.n_chains > 1 else None
 
 
 def ring_closed(top) -> bool | None:

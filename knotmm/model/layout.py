@@ -9,6 +9,14 @@ ring and at every bead of an open chain but its two ends. The forces
 (:mod:`knotmm.model.topology`: one PDB chain per chain), the engine's bond-length check and
 the analysis all take their bonds from a :class:`ChainLayout`.
 
+Chains are named without limit: :func:`chain_ids` gives ``"A"`` ... ``"Z"``, ``"a"`` ...
+``"z"``, ``"0"`` ... ``"9"`` to the first 62 chains, then ``"AA"``, ``"AB"``, ... (bijective
+base 62: each name unique, up to four characters for 15 million chains). The name is the
+chain's key in run.toml (linking numbers ``"A-B"``) and its PDB segment name; a PDB chain
+identifier is one character, so :attr:`ChainLayout.pdb_chain_ids` repeats them after 62
+chains (as OpenMM and mdtraj do), and readers tell chains apart by their bonds (CONECT
+records), never by the chain identifier.
+
 >>> layout = ChainLayout((4, 3), (True, False))
 >>> layout.bonds().tolist()
 [[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6]]
@@ -25,10 +33,33 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CHAIN_IDS", "ChainLayout"]
+from knotmm.errors import TrajectoryFileError
 
-#: PDB chain identifiers, in the order chains are named (one character each, as PDB needs).
+__all__ = ["CHAIN_IDS", "ChainLayout", "chain_id", "chain_ids"]
+
+#: PDB chain identifiers, in the order chains are named (one character each, as PDB needs);
+#: the names of the first 62 chains, and the digits of the longer names of :func:`chain_ids`.
 CHAIN_IDS = string.ascii_uppercase + string.ascii_lowercase + string.digits
+
+
+def chain_id(index: int) -> str:
+    """The name of chain ``index`` (from 0): ``"A"``, ..., ``"9"``, ``"AA"``, ``"AB"``, ...
+
+    Bijective base 62 over :data:`CHAIN_IDS`, so that every index has its own name and the
+    first 62 are the one-character PDB chain identifiers.
+    """
+    base = len(CHAIN_IDS)
+    k = int(index) + 1
+    digits = []
+    while k > 0:
+        k, r = divmod(k - 1, base)
+        digits.append(CHAIN_IDS[r])
+    return "".join(reversed(digits))
+
+
+def chain_ids(n_chains: int) -> tuple[str, ...]:
+    """The names of ``n_chains`` chains, in order (:func:`chain_id`)."""
+    return tuple(chain_id(c) for c in range(int(n_chains)))
 
 
 @dataclass(frozen=True)
@@ -45,8 +76,8 @@ class ChainLayout:
     Raises
     ------
     ValueError
-        For no chains, a count that is not an integer or too small, more chains than
-        :data:`CHAIN_IDS` names, or ``closed`` of another length.
+        For no chains, a count that is not an integer or too small, or ``closed`` of another
+        length.
     """
 
     lengths: tuple[int, ...]
@@ -57,8 +88,6 @@ class ChainLayout:
         closed = tuple(self.closed) if len(self.closed) else (True,) * len(lengths)
         if not lengths:
             raise ValueError("a system needs at least one chain")
-        if len(lengths) > len(CHAIN_IDS):
-            raise ValueError(f"{len(lengths)} chains: at most {len(CHAIN_IDS)} are supported")
         if len(closed) != len(lengths):
             raise ValueError(
                 f"closed has {len(closed)} entries for {len(lengths)} chains: give one per chain"
@@ -66,11 +95,11 @@ class ChainLayout:
         checked = []
         for c, (n, ring) in enumerate(zip(lengths, closed, strict=True)):
             if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-                raise ValueError(f"chain {CHAIN_IDS[c]}: bead count {n!r} is not an integer")
+                raise ValueError(f"chain {chain_id(c)}: bead count {n!r} is not an integer")
             minimum = 3 if ring else 2
             if n < minimum:
                 raise ValueError(
-                    f"chain {CHAIN_IDS[c]}: {n} beads; {'a closed' if ring else 'an open'} chain "
+                    f"chain {chain_id(c)}: {n} beads; {'a closed' if ring else 'an open'} chain "
                     f"needs at least {minimum}"
                 )
             checked.append(int(n))
@@ -89,20 +118,128 @@ class ChainLayout:
         return layout if isinstance(layout, ChainLayout) else cls.ring(layout)
 
     @classmethod
-    def from_record(cls, record: Mapping[str, Any] | None, n_beads: int) -> ChainLayout:
-        """The layout :meth:`to_record` wrote (run.toml), or a ring of ``n_beads`` without one."""
-        if not record:
+    def from_record(cls, record: Mapping[str, Any] | None, n_beads: int, *,
+                    expected: ChainLayout | None = None,
+                    chains: Sequence[Mapping[str, Any]] | None = None,
+                    where: str = "run.toml's [knotmm.layout]") -> ChainLayout:
+        """The layout :meth:`to_record` wrote (run.toml), or a ring of ``n_beads`` without one.
+
+        The record is checked, as a file a person may have edited: its types, its bead
+        count against ``n_beads`` (the checkpoint's state), and its chains against those the
+        run wrote elsewhere: ``expected`` (the chains of its ``topology.pdb``, from the
+        CONECT records; :meth:`from_bonds`) or else ``chains`` (run.toml's
+        ``[[knotmm.chains]]`` tables, ``beads`` and ``closed`` each).
+
+        Parameters
+        ----------
+        record : mapping or None
+            ``{"lengths": [...], "closed": [...]}`` as read from run.toml.
+        n_beads : int
+            Beads of the state the layout must describe.
+        expected : ChainLayout, optional
+            The chains the run's topology file holds.
+        chains : sequence of mapping, optional
+            The chains run.toml records (used when ``expected`` is not given).
+        where : str, optional
+            How messages name the record.
+
+        Raises
+        ------
+        TrajectoryFileError
+            One line naming ``where``, what is inconsistent and what to restore: a record
+            that is not a table of two lists, an invalid layout, another bead count, or
+            chains other than the run's.
+        """
+        if expected is None and chains:
+            expected = _layout_of_chains(chains)
+        hint = ("restore it as the run wrote it" if expected is None else
+                f"restore {expected.record_text()} (the run's chains)")
+        if record is None or (isinstance(record, Mapping) and not record):
+            if expected is not None and expected != cls.ring(expected.n_beads):
+                raise TrajectoryFileError(
+                    f"{where} is missing, but the run holds {expected.describe()}; "
+                    f"restore {where} with {expected.record_text()}"
+                )
             return cls.ring(n_beads)
-        layout = cls(tuple(record["lengths"]), tuple(record["closed"]))
-        if layout.n_beads != n_beads:
-            raise ValueError(
-                f"the recorded chains hold {layout.n_beads} beads, the state {n_beads}"
+        if not isinstance(record, Mapping):
+            raise TrajectoryFileError(
+                f"{where} = {record!r}: expected a table with lengths = [...] and closed = "
+                f"[...]; {hint}"
             )
+        lengths, closed = record.get("lengths"), record.get("closed")
+        for key, value, kind in (("lengths", lengths, "bead counts"),
+                                 ("closed", closed, "true/false, one per chain")):
+            if not isinstance(value, (list, tuple)):
+                raise TrajectoryFileError(
+                    f"{where} {key} = {value!r}: expected a list of {kind}; {hint}"
+                )
+        if len(closed) != len(lengths):
+            raise TrajectoryFileError(
+                f"{where}: closed has {len(closed)} entries for {len(lengths)} chains "
+                f"(lengths = {list(lengths)!r}); {hint}"
+            )
+        if not all(isinstance(r, bool) for r in closed):
+            raise TrajectoryFileError(
+                f"{where} closed = {list(closed)!r}: expected true or false per chain; {hint}"
+            )
+        try:
+            layout = cls(tuple(lengths), tuple(closed))
+        except ValueError as exc:
+            raise TrajectoryFileError(f"{where}: {exc}; {hint}") from None
+        if layout.n_beads != n_beads:
+            raise TrajectoryFileError(
+                f"{where} lengths = {list(layout.lengths)} hold {layout.n_beads} beads, the "
+                f"run's state {n_beads}; {hint}"
+            )
+        if expected is not None and layout != expected:
+            raise TrajectoryFileError(
+                f"{where} ({layout.record_text()}) disagrees with the run's chains "
+                f"({expected.describe()}): it was edited; {hint}"
+            )
+        return layout
+
+    @classmethod
+    def from_bonds(cls, n_beads: int, bonds) -> ChainLayout | None:
+        """The layout whose bonds are exactly ``bonds`` (a topology file's), or ``None``.
+
+        Chains are runs of consecutive beads bonded ``i - (i + 1)``; a chain is closed when
+        its last bead is bonded to its first. ``None`` when there are no bonds, or when they
+        are not those of any layout (a bond between beads that are not neighbours in a
+        chain, a bead bonded to nothing among bonded ones).
+
+        Parameters
+        ----------
+        n_beads : int
+        bonds : array_like, shape (n_bonds, 2), int
+            Bonded pairs of bead indices (from 0), in any order.
+        """
+        pairs = {tuple(sorted((int(a), int(b)))) for a, b in np.asarray(bonds).reshape(-1, 2)}
+        if not pairs or n_beads < 2:
+            return None
+        lengths, closed = [], []
+        start = 0
+        for i in range(n_beads):
+            if i == n_beads - 1 or (i, i + 1) not in pairs:
+                count = i + 1 - start
+                lengths.append(count)
+                closed.append(count >= 3 and (start, i) in pairs)
+                start = i + 1
+        try:
+            layout = cls(tuple(lengths), tuple(closed))
+        except ValueError:
+            return None
+        if {tuple(sorted(map(int, b))) for b in layout.bonds()} != pairs:
+            return None
         return layout
 
     def to_record(self) -> dict[str, list]:
         """``{"lengths": [...], "closed": [...], "ids": [...]}`` for run.toml."""
         return {"lengths": list(self.lengths), "closed": list(self.closed), "ids": list(self.ids)}
+
+    def record_text(self) -> str:
+        """The layout as run.toml writes it: ``lengths = [30, 30], closed = [true, true]``."""
+        flags = ", ".join("true" if r else "false" for r in self.closed)
+        return f"lengths = {list(self.lengths)}, closed = [{flags}]"
 
     # -- description ----------------------------------------------------------------------
     @property
@@ -120,8 +257,15 @@ class ChainLayout:
 
     @property
     def ids(self) -> tuple[str, ...]:
-        """The chains' PDB identifiers: ``"A"``, ``"B"``, ..."""
-        return tuple(CHAIN_IDS[: self.n_chains])
+        """The chains' names: ``"A"``, ``"B"``, ..., ``"AA"``, ... (:func:`chain_ids`; unique,
+        the PDB segment names)."""
+        return chain_ids(self.n_chains)
+
+    @property
+    def pdb_chain_ids(self) -> tuple[str, ...]:
+        """The chains' one-character PDB chain identifiers: the names of the first 62
+        chains, then again from ``"A"`` (not unique past 62 chains)."""
+        return tuple(CHAIN_IDS[c % len(CHAIN_IDS)] for c in range(self.n_chains))
 
     @property
     def starts(self) -> np.ndarray:
@@ -195,6 +339,16 @@ class ChainLayout:
                 out.append((before, after))
             first += m
         return out
+
+
+def _layout_of_chains(chains: Sequence[Mapping[str, Any]]) -> ChainLayout | None:
+    """The layout of run.toml's ``[[knotmm.chains]]`` tables (``beads``, ``closed``), or
+    ``None`` when they do not describe one."""
+    try:
+        return ChainLayout(tuple(c["beads"] for c in chains),
+                           tuple(bool(c["closed"]) for c in chains))
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def concatenate(parts: Sequence[ChainLayout]) -> ChainLayout:

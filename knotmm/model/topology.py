@@ -1,7 +1,8 @@
 """The bead Topology: the one description of a knotmm system's atoms and bonds.
 
 A knotmm chain is one PDB chain of beads (``A``, then ``B``, ... for the further chains of a
-:class:`knotmm.model.layout.ChainLayout`), one residue ``BEA`` per bead (numbered from 1 in
+:class:`knotmm.model.layout.ChainLayout`, named by :func:`knotmm.model.layout.chain_ids`
+without limit: ``AA``, ``AB``, ... past 62 chains), one residue ``BEA`` per bead (numbered from 1 in
 each chain), one atom ``B`` per residue (element carbon, only so that viewers draw it), bead
 ``i`` bonded to bead ``i + 1`` and, in a ring, the last bead bonded to the first. The
 residue name is non-standard on purpose: mdtraj writes ``CONECT`` records only for
@@ -50,7 +51,8 @@ def bead_topology(n_beads: int | ChainLayout, closed: bool = True) -> openmm.app
     Returns
     -------
     openmm.app.Topology
-        One chain ``A`` (``B``, ... for a layout's further chains), residues ``BEA``
+        One chain ``A`` (``B``, ..., ``AA``, ... for a layout's further chains: the chain's
+        name, :attr:`ChainLayout.ids`), residues ``BEA``
         numbered from 1 in each chain, one atom ``B`` (carbon) each, the bonds of
         :meth:`ChainLayout.bonds` (``i -> i + 1`` and, if ``closed``, ``n_beads - 1 -> 0``).
 

@@ -36,8 +36,19 @@ def rotation_matrix(axis_angle: Sequence[float]) -> np.ndarray:
     Returns
     -------
     ndarray, shape (3, 3)
+
+    Raises
+    ------
+    TemplateError
+        For an axis without a direction: zero, not finite, or its largest component
+        subnormal (below 2.2e-308).
     """
     axis = np.asarray(axis_angle[:3], dtype=np.float64)
+    scale = float(np.max(np.abs(axis)))  # first: the norm of [1e200, 1e200, 0] overflows
+    if not (math.isfinite(scale) and scale >= np.finfo(np.float64).tiny):
+        raise TemplateError(f"rotation = {list(axis_angle)!r}: the axis (x, y, z) has no "
+                            "direction; give a non-zero axis, e.g. [0, 0, 1, 90]")
+    axis = axis / scale
     axis = axis / np.linalg.norm(axis)
     angle = math.radians(float(axis_angle[3]))
     k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
@@ -84,12 +95,18 @@ def closest_between(a: np.ndarray, b: np.ndarray) -> tuple[float, int, int]:
     return best, pair[0], pair[1]
 
 
-def _separation(a: np.ndarray, b: np.ndarray, steric_range: float) -> float:
-    """How far ``b`` must move away from ``a`` along the line of their centres (x when the
-    centres coincide) before no pair is within ``steric_range``, in d (to 0.01 d)."""
+def _advised_distance(a: np.ndarray, b: np.ndarray, steric_range: float) -> float:
+    """The distance of the centres of ``a`` and ``b``, rounded up to 0.01 d, at which no
+    pair is within ``steric_range`` once ``b`` moves away from ``a`` along the line of their
+    centres (x when the centres coincide), in d.
+
+    The bisection finds the clearing shift to 0.005 d; the distance is then rounded up (never
+    down) and checked at a hair below its value, so that chains put there, whatever the
+    rounding of their offsets, pass :func:`assemble`'s check.
+    """
     u = b.mean(0) - a.mean(0)
-    norm = float(np.linalg.norm(u))
-    u = u / norm if norm > 1e-12 else np.array([1.0, 0.0, 0.0])
+    gap = float(np.linalg.norm(u))
+    u = u / gap if gap > 1e-12 else np.array([1.0, 0.0, 0.0])
 
     def clear(s):
         return closest_between(a, b + s * u)[0] >= steric_range
@@ -101,7 +118,10 @@ def _separation(a: np.ndarray, b: np.ndarray, steric_range: float) -> float:
     while hi - lo > 0.005:
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if clear(mid) else (mid, hi)
-    return hi
+    advised = math.ceil(round((gap + hi) * 100.0, 6)) / 100.0
+    while not clear(advised - gap - 1e-6):
+        advised += 0.01
+    return advised
 
 
 def assemble(
@@ -140,7 +160,7 @@ def assemble(
                     f"{names[a]} and {names[b]} overlap: bead {i} of {names[a]} and bead {j} "
                     f"of {names[b]} are {d:.3f} d apart, inside the steric range "
                     f"{steric_range:.3f} d; put their centres at least "
-                    f"{gap + _separation(xa, xb, steric_range):.2f} d apart along the line "
+                    f"{_advised_distance(xa, xb, steric_range):.2f} d apart along the line "
                     f"joining them (now {gap:.2f} d), e.g. with their offsets"
                 )
     chains = [c for part in parts for c in (part.parts or [part])]

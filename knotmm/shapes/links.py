@@ -14,9 +14,11 @@ the torus of one major radius so that the components cross one another as the di
 
 Beads are placed at equal chord on each component (:func:`knotmm.shapes.curves.equal_chord`),
 all at the major radius at which the component with the most beads has bonds of exactly
-``bond_length``. A torus link's components are congruent, so all its bonds are exact; a braid
-link's other components differ by about ``1 / (2 n_k)`` relative (``n_k`` beads on component
-k; whole bead counts shared in proportion to length). Lengths are in d.
+``bond_length``, or at a given ``major_radius`` (each component's bonds are then its
+perimeter over its beads, off ``bond_length``). A torus link's components are congruent, so
+all its bonds are exact; a braid link's other components differ by about ``1 / (2 n_k)``
+relative (``n_k`` beads on component k; whole bead counts shared in proportion to length).
+Lengths are in d.
 """
 
 from __future__ import annotations
@@ -119,6 +121,18 @@ def _shared_radius(curves: Sequence[TubeCurve], beads: int, bond_length: float,
     return 0.5 * (lo + hi)
 
 
+def _given_radius(curves: Sequence[TubeCurve], major_radius: float, what: str) -> float:
+    """``major_radius`` checked: positive, and large enough that no strand crosses the axis."""
+    r0 = check_positive(major_radius, "knot.major_radius")
+    reach = max(-c.rho_min for c in curves)
+    if r0 <= reach:
+        raise TemplateError(
+            f"knot.major_radius={r0:g} is too small for {what}: the strands reach {reach:g} d "
+            f"from the torus centre-line; use knot.major_radius > {reach:g} or leave it unset"
+        )
+    return r0
+
+
 def _exact_radius(curve: TubeCurve, n: int, bond_length: float, beads: int, what: str) -> float:
     """The major radius at which ``n`` equal chords of ``curve`` are ``bond_length``."""
     try:
@@ -133,7 +147,7 @@ def _exact_radius(curve: TubeCurve, n: int, bond_length: float, beads: int, what
 
 
 def _place(curves: Sequence[TubeCurve], counts: Sequence[int], r0: float, bond_length: float,
-           mirror: bool, name: str, beads: int) -> LinkShape:
+           mirror: bool, name: str, beads: int, given: bool = False) -> LinkShape:
     comps, chords = [], []
     for curve, n in zip(curves, counts, strict=True):
         if n < 3:
@@ -141,6 +155,13 @@ def _place(curves: Sequence[TubeCurve], counts: Sequence[int], r0: float, bond_l
         try:
             s, _, chord = equal_chord(curve, n, r0, bond_length)
         except (TooFewBeads, RuntimeError):
+            if given:
+                raise TemplateError(
+                    f"knot.major_radius={r0:g} with knot.beads={beads}: the beads cannot be "
+                    f"spaced equally on {name} at that radius (bonds near "
+                    f"{curve.length(r0) / n:.3g} d, the bond length is {bond_length:g} d); "
+                    "use a radius that gives bonds near the bond length, or leave it unset"
+                ) from None
             raise TemplateError(
                 f"knot.beads={beads} is too few for {name}: the beads cannot be spaced "
                 f"equally on so small a torus; use more knot.beads"
@@ -155,7 +176,8 @@ def _place(curves: Sequence[TubeCurve], counts: Sequence[int], r0: float, bond_l
 
 
 def torus_link(p: int, q: int, beads: int, bond_length: float = 0.6,
-               minor_radius: float = 0.6, mirror: bool = False) -> LinkShape:
+               minor_radius: float = 0.6, mirror: bool = False,
+               major_radius: float | None = None) -> LinkShape:
     """The torus link ``T(p, q)``, ``gcd(p, q) = g > 1``: ``g`` components of ``beads / g``
     beads, each the torus knot ``T(p/g, q/g)`` (an unknot when ``p/g = 1``).
 
@@ -172,11 +194,14 @@ def torus_link(p: int, q: int, beads: int, bond_length: float = 0.6,
         In d.
     mirror : bool, optional
         The mirror image (z -> -z).
+    major_radius : float, optional
+        The torus radius, in d; default: the radius at which the bonds are ``bond_length``.
 
     Raises
     ------
     TemplateError
-        If ``gcd(p, q) = 1`` (a knot), ``beads`` is not a multiple of ``g``, or too few.
+        If ``gcd(p, q) = 1`` (a knot), ``beads`` is not a multiple of ``g``, too few, or
+        ``major_radius`` is too small for the strands.
     """
     p, q = check_int(p, "knot.p", 1), check_int(q, "knot.q", 1)
     g = math.gcd(p, q)
@@ -196,22 +221,29 @@ def torus_link(p: int, q: int, beads: int, bond_length: float = 0.6,
     curves = [_rotated_torus_curve(p // g, q // g, a, 2.0 * np.pi * k / (g * (p // g)))
               for k in range(g)]
     name = f"T({p},{q})"
-    r0 = _exact_radius(curves[0], beads // g, bond_length, beads, name)  # all congruent
-    return _place(curves, [beads // g] * g, r0, bond_length, mirror, name, beads)
+    if major_radius is not None:
+        r0 = _given_radius(curves, major_radius, name)
+    else:
+        r0 = _exact_radius(curves[0], beads // g, bond_length, beads, name)  # all congruent
+    return _place(curves, [beads // g] * g, r0, bond_length, mirror, name, beads,
+                  given=major_radius is not None)
 
 
 def braid_link(word: Sequence[int], beads: int, bond_length: float = 0.6,
                minor_radius: float = 0.6, mirror: bool = False,
-               name: str | None = None) -> LinkShape:
+               name: str | None = None, major_radius: float | None = None) -> LinkShape:
     """The closure of ``word`` with two or more components (cycles of its permutation).
 
     Component k starts in the lowest slot of its cycle; the beads are shared in proportion
-    to the components' lengths at the shared major radius (at least 3 each).
+    to the components' lengths at the shared major radius (at least 3 each): ``major_radius``
+    (in d) if given, else the radius at which the longest component's bonds are
+    ``bond_length``.
 
     Raises
     ------
     TemplateError
-        For an empty word, a generator 0, a word whose closure is a knot, or too few beads.
+        For an empty word, a generator 0, a word whose closure is a knot, too few beads, or a
+        ``major_radius`` too small for the strands.
     """
     try:
         word = [int(g) for g in word]
@@ -228,6 +260,10 @@ def braid_link(word: Sequence[int], beads: int, bond_length: float = 0.6,
     bond_length = check_positive(bond_length, "model.bond_length")
     a = check_positive(minor_radius, "knot.minor_radius")
     curves = [braid_curve(word, a, cycle=c) for c in cycles]
+    if major_radius is not None:
+        r0 = _given_radius(curves, major_radius, label)
+        counts = _share(beads, np.array([c.length(r0) for c in curves]))
+        return _place(curves, counts, r0, bond_length, mirror, label, beads, given=True)
     r0 = _shared_radius(curves, beads, bond_length, label)
     lengths = np.array([c.length(r0) for c in curves])
     counts = _share(beads, lengths)
@@ -264,9 +300,10 @@ def _linkinfo_word(name: str) -> tuple[int, ...] | None:
 
 
 def named_link(name: str, beads: int, bond_length: float = 0.6, minor_radius: float = 0.6,
-               mirror: bool = False) -> LinkShape:
+               mirror: bool = False, major_radius: float | None = None) -> LinkShape:
     """A link by name: :data:`COMMON_LINKS` or a LinkInfo name such as ``L4a1{1}`` (needs
-    database_knotinfo; ``L4a1`` means its orientation ``{0}``).
+    database_knotinfo; ``L4a1`` means its orientation ``{0}``). ``major_radius``: as for
+    :func:`torus_link` and :func:`braid_link`.
 
     Raises
     ------
@@ -278,15 +315,16 @@ def named_link(name: str, beads: int, bond_length: float = 0.6, minor_radius: fl
     if common is not None:
         kind, data = common
         if kind == "torus":
-            shape = torus_link(*data, beads, bond_length, minor_radius, mirror)
+            shape = torus_link(*data, beads, bond_length, minor_radius, mirror, major_radius)
             return LinkShape(f"{key.lower()} link {shape.name}", shape.components,
                              shape.major_radius, shape.bond_lengths)
         return braid_link(data, beads, bond_length, minor_radius, mirror,
-                          name=f"the {key.lower()} link")
+                          name=f"the {key.lower()} link", major_radius=major_radius)
     if LINKINFO_NAME.fullmatch(key):
         word = _linkinfo_word(key)
         if word is not None:
-            return braid_link(word, beads, bond_length, minor_radius, mirror, name=key)
+            return braid_link(word, beads, bond_length, minor_radius, mirror, name=key,
+                              major_radius=major_radius)
         try:
             import database_knotinfo  # noqa: F401
         except ImportError:

@@ -18,7 +18,7 @@ import numpy as np
 
 from knotmm.errors import TemplateError
 from knotmm.model.layout import ChainLayout
-from knotmm.shapes.assembly import assemble, place
+from knotmm.shapes.assembly import assemble, closest_between, place
 from knotmm.shapes.checks import BOND_TOLERANCE, check_template
 from knotmm.shapes.curves import braid_cycles
 from knotmm.shapes.links import COMMON_LINKS, LINKINFO_NAME, braid_link, named_link, torus_link
@@ -65,6 +65,11 @@ def build_open(cfg, build_template: Callable) -> Template:
     """An open filament from ``[knot]``: a straight rod, an arc, a helix, or a closed
     template (a knot, a file) cut open between its last bead and its first.
 
+    A link with ``knot.closed = false`` is cut open component by component: one open chain
+    per component, each between its last bead and its first (its linking numbers are then
+    not defined and not recorded). ``knot.perturbation`` is applied once, here, to the
+    beads of every chain (one normal draw in bead order, as for the closed template).
+
     Raises
     ------
     TemplateError
@@ -76,6 +81,7 @@ def build_open(cfg, build_template: Callable) -> Template:
     steric = LJ_CUTOFF_FACTOR * check_positive(cfg["model.lj_sigma"], "model.lj_sigma")
     notes: list[str] = []
     resolved: dict[str, Any] = {}
+    closed = None
     if kind in OPEN_KINDS:
         if cfg["knot.closed"] is True:
             raise TemplateError(
@@ -97,13 +103,14 @@ def build_open(cfg, build_template: Callable) -> Template:
         if cfg["knot.mirror"]:
             x = x * np.array([1.0, 1.0, -1.0])
             description += " (mirror image)"
-    else:
-        closed = build_template(cfg.replace({"knot.closed": True}), allow_open_chain=True,
-                                identify="skip")
+    else:  # the closed shape unperturbed: the perturbation is applied below, once
+        closed = build_template(cfg.replace({"knot.closed": True, "knot.perturbation": 0.0}),
+                                allow_open_chain=True, identify="skip")
         x = closed.positions
-        resolved.update(closed.resolved)
+        resolved.update({k: v for k, v in closed.resolved.items() if k != "knot.seed"})
         description = f"{closed.description.split(', writhe')[0]}, cut open"
         notes.extend(n for n in closed.notes if "open chain" not in n)
+    lengths = closed.layout.lengths if closed is not None else (x.shape[0],)
     check_memory(cfg, x.shape[0])
     perturbation = float(cfg["knot.perturbation"])
     if perturbation > 0.0:
@@ -112,34 +119,71 @@ def build_open(cfg, build_template: Callable) -> Template:
         x -= x.mean(axis=0)
         resolved["knot.seed"] = int(seed)
         notes.append(f"perturbed by {perturbation:g} d (std per coordinate), seed {seed}")
+    chains = np.split(x, np.cumsum(lengths)[:-1])
+    limit = steric if kind in OPEN_KINDS and perturbation == 0.0 else cfg["model.lj_sigma"]
+    for k, chain in enumerate(chains):
+        _check_open(cfg, chain, bond, limit, perturbation,
+                    "" if len(chains) == 1 else f"component {k}: ")
+    notes.append("open chain: its knot type is not defined (not checked)")
+    if len(chains) == 1:
+        return Template(
+            positions=np.ascontiguousarray(x, dtype=np.float64),
+            description=description,
+            resolved=resolved,
+            writhe=float("nan"),
+            knot_type=None,
+            notes=notes,
+            layout=ChainLayout((x.shape[0],), (False,)),
+        )
+    return _cut_link(cfg, closed, chains, limit, resolved, notes)
+
+
+def _check_open(cfg, x: np.ndarray, bond: float, limit: float, perturbation: float,
+                what: str) -> None:
+    """Refuse an open chain with a bond past run.max_bond_length, beads closer than
+    ``limit`` (in d), or (an open kind, unperturbed) bonds off the bond length."""
+    kind = cfg["knot.kind"]
     bonds = np.linalg.norm(np.diff(x, axis=0), axis=1)
     if bonds.max() > cfg["run.max_bond_length"]:
         raise TemplateError(
-            f"knot: the open chain has a bond of {bonds.max():.3f} d, longer than "
+            f"knot: {what}the open chain has a bond of {bonds.max():.3f} d, longer than "
             f"run.max_bond_length={cfg['run.max_bond_length']:g}"
+            + ("; use a smaller knot.perturbation" if perturbation > 0.0 else "")
         )
     dmin, pair = closest_nonbonded_open(x)
-    limit = steric if kind in OPEN_KINDS and perturbation == 0.0 else cfg["model.lj_sigma"]
     if dmin < limit:
         raise TemplateError(
-            f"knot.kind={kind!r}: beads {pair[0]} and {pair[1]} are {dmin:.3f} d apart, inside "
-            f"the steric range {limit:.3f} d; "
+            f"knot.kind={kind!r}: {what}beads {pair[0]} and {pair[1]} are {dmin:.3f} d apart, "
+            f"inside the steric range {limit:.3f} d; "
             + ("use a larger knot.helix_radius or knot.helix_pitch" if kind == "helix"
                else "use another shape or a smaller knot.perturbation")
         )
     if kind in OPEN_KINDS and perturbation == 0.0 and (
             np.abs(bonds - bond).max() > BOND_TOLERANCE * bond):
         raise TemplateError(f"knot.kind={kind!r}: bonds off the bond length {bond:g} d")
-    notes.append("open chain: its knot type is not defined (not checked)")
-    return Template(
-        positions=np.ascontiguousarray(x, dtype=np.float64),
-        description=description,
-        resolved=resolved,
-        writhe=float("nan"),
-        knot_type=None,
-        notes=notes,
-        layout=ChainLayout((x.shape[0],), (False,)),
-    )
+
+
+def _cut_link(cfg, closed: Template, chains: list[np.ndarray], limit: float,
+              resolved: dict[str, Any], notes: list[str]) -> Template:
+    """A link's components as open chains, one each: checked apart, described, its name kept
+    (linking numbers are not defined for open chains)."""
+    for a, b, d in _close_components(chains, limit):
+        raise TemplateError(
+            f"knot.kind={cfg['knot.kind']!r}: components {a} and {b} come {d:.3f} d close, "
+            f"inside the steric range {limit:.3f} d; use a smaller knot.perturbation"
+        )
+    parts = [Template(positions=np.ascontiguousarray(c, dtype=np.float64),
+                      description=f"component {k}, cut open", resolved={},
+                      writhe=float("nan"), knot_type=None,
+                      layout=ChainLayout((c.shape[0],), (False,)))
+             for k, c in enumerate(chains)]
+    name = closed.chain_facts.get("link", "link")
+    system = assemble(parts, [f"component {k}" for k in range(len(parts))], limit,
+                      {"link": name})
+    system.description = f"{name}, {system.description}"  # each part says "cut open"
+    system.resolved = resolved
+    system.notes = notes
+    return system
 
 
 # -- links ------------------------------------------------------------------------------------
@@ -147,19 +191,28 @@ def build_link(cfg, identify: str = "now") -> Template:
     """A link from ``[knot]``: one closed chain per component, their linking numbers.
 
     ``knot.beads`` is the whole link's bead count, shared among the components in
-    proportion to their lengths (:mod:`knotmm.shapes.links`).
+    proportion to their lengths (:mod:`knotmm.shapes.links`). ``knot.major_radius``,
+    ``knot.perturbation`` and ``knot.seed`` act as on a single knot
+    (:func:`knotmm.shapes.builder.build_template`): the components lie on the torus of that
+    radius (their bonds then relax in the run; close pairs down to ``lj_sigma`` allowed), and
+    every bead of the link is displaced by one normal draw of
+    ``numpy.random.default_rng(knot.seed or run.seed)``, after which the components are
+    checked and their linking numbers measured.
 
     Raises
     ------
     TemplateError
-        An unknown link name, too few beads, components inside the steric range.
+        An unknown link name, too few beads, a major radius too small for the strands or
+        with bonds past ``run.max_bond_length``, components inside the steric range (before
+        or after the perturbation).
     """
     from knotmm.knots.linking import linking_numbers
 
     kind = cfg["knot.kind"]
     beads = check_int(cfg["knot.beads"], "knot.beads", 8)
+    explicit = cfg["knot.major_radius"] is not None
     common = {"bond_length": cfg["model.bond_length"], "minor_radius": cfg["knot.minor_radius"],
-              "mirror": bool(cfg["knot.mirror"])}
+              "mirror": bool(cfg["knot.mirror"]), "major_radius": cfg["knot.major_radius"]}
     try:
         if kind == "torus":
             shape = torus_link(int(cfg["knot.p"]), int(cfg["knot.q"]), beads, **common)
@@ -170,17 +223,30 @@ def build_link(cfg, identify: str = "now") -> Template:
         else:
             shape = named_link(str(cfg["knot.name"]), beads, **common)
     except ValueError as exc:
-        raise TemplateError(f"knot: {exc}") from None
+        message = str(exc)
+        raise TemplateError(message if message.startswith("knot.") else f"knot: {message}") \
+            from None
+    check_memory(cfg, shape.n_beads)
+    components = [np.asarray(x, dtype=np.float64) for x in shape.components]
+    notes: list[str] = []
+    resolved: dict[str, Any] = {}
+    if explicit:
+        notes.extend(_link_radius_notes(cfg, shape.bond_lengths, beads))
+    perturbation = float(cfg["knot.perturbation"])
+    if perturbation > 0.0:
+        components, seed = _perturbed(cfg, components)
+        resolved["knot.seed"] = seed
+        notes.append(f"perturbed by {perturbation:g} d (std per coordinate), seed {seed}")
+    _check_bond_range(cfg, components, "knot.major_radius" if explicit else "knot.beads")
     sigma = cfg["model.lj_sigma"]
-    steric = LJ_CUTOFF_FACTOR * sigma
+    steric = sigma if explicit else LJ_CUTOFF_FACTOR * sigma
     parts = []
-    for k, x in enumerate(shape.components):
+    for k, x in enumerate(components):
         check = check_template(x, cfg["model.bond_length"], sigma, bond_tolerance=None,
-                               identify=identify == "now")
+                               identify=identify == "now", min_distance=steric)
         if check.problems:
-            raise TemplateError(
-                f"knot: component {k} of {shape.name}: {check.problems[0]}; use more knot.beads"
-            )
+            raise TemplateError(_link_problem(cfg, f"component {k} of {shape.name}",
+                                              check.problems[0]))
         kt = check.knot_type
         parts.append(Template(
             positions=np.ascontiguousarray(x, dtype=np.float64),
@@ -188,15 +254,91 @@ def build_link(cfg, identify: str = "now") -> Template:
             resolved={}, writhe=check.writhe, knot_type=kt, notes=list(check.notes),
             check=check,
         ))
-    numbers = linking_numbers(list(shape.components))
+    if perturbation > 0.0:  # the components were apart before; say what brought them close
+        for a, b, d in _close_components(components, steric):
+            raise TemplateError(_link_problem(
+                cfg, shape.name, f"components {a} and {b} come {d:.3f} d close, inside "
+                f"{steric:.3f} d"))
+    numbers = linking_numbers(components)
     ids = ChainLayout(tuple(p.n_beads for p in parts)).ids
     facts = {"link": shape.name,
              "linking_numbers": {f"{ids[i]}-{ids[j]}": int(v) for (i, j), v in numbers.items()}}
-    check_memory(cfg, sum(p.n_beads for p in parts))
     system = assemble(parts, [f"component {k}" for k in range(len(parts))], steric, facts)
     system.description = f"{shape.name}, {system.description}"
-    system.resolved = {"knot.beads": system.n_beads}
+    system.resolved = {"knot.beads": system.n_beads, **resolved}
+    system.notes = notes + system.notes
     return system
+
+
+def _perturbed(cfg, components: list[np.ndarray]) -> tuple[list[np.ndarray], int]:
+    """The components displaced as a single knot's beads are (one normal draw over all the
+    beads, in bead order; the link's centre kept), and the seed used."""
+    seed = cfg["knot.seed"] if cfg["knot.seed"] is not None else cfg["run.seed"]
+    x = np.concatenate(components)
+    with np.errstate(all="ignore"):
+        x = x + np.random.default_rng(seed).normal(scale=float(cfg["knot.perturbation"]),
+                                                   size=x.shape)
+        x -= x.mean(axis=0)
+    if not np.all(np.isfinite(x)):
+        raise TemplateError(
+            f"knot.perturbation={float(cfg['knot.perturbation']):g} is too large: the beads "
+            "leave the range of floating-point numbers; use a perturbation below the bond "
+            f"length {cfg['model.bond_length']:g} d"
+        )
+    cuts = np.cumsum([c.shape[0] for c in components])[:-1]
+    return [np.ascontiguousarray(c) for c in np.split(x, cuts)], int(seed)
+
+
+def _link_problem(cfg, what: str, problem: str) -> str:
+    """The one-line refusal of a link whose components fail a check: names the key to change."""
+    if float(cfg["knot.perturbation"]) > 0.0:
+        return (f"knot.perturbation={float(cfg['knot.perturbation']):g} is too large: after it "
+                f"{what}: {problem}; use a smaller perturbation or another knot.seed")
+    if cfg["knot.major_radius"] is not None:
+        return (f"knot.major_radius={cfg['knot.major_radius']:g} with knot.beads="
+                f"{cfg['knot.beads']} is too tight: {what}: {problem}; use a larger "
+                "knot.major_radius or leave it unset")
+    return f"knot: {what}: {problem}; use more knot.beads"
+
+
+def _link_radius_notes(cfg, chords: tuple[float, ...], beads: int) -> list[str]:
+    """The note on bonds that an explicit knot.major_radius leaves off the bond length."""
+    bond = cfg["model.bond_length"]
+    worst = max(chords, key=lambda c: abs(c - bond))
+    rel = (worst - bond) / bond
+    if abs(rel) <= BOND_TOLERANCE:
+        return []
+    return [
+        f"knot.major_radius={cfg['knot.major_radius']:g} with knot.beads={beads} gives bonds "
+        f"up to {100 * abs(rel):.1f}% {'longer' if rel > 0 else 'shorter'} than "
+        f"model.bond_length={bond:g} ({', '.join(f'{c:.4f}' for c in chords)} d); they relax "
+        "in the run"
+    ]
+
+
+def _check_bond_range(cfg, components: list[np.ndarray], key: str) -> None:
+    """Refuse components with a bond past run.max_bond_length (the run's first step would)."""
+    with np.errstate(over="ignore"):
+        longest = max(float(np.linalg.norm(np.roll(x, -1, axis=0) - x, axis=1).max())
+                      for x in components)
+    if longest > cfg["run.max_bond_length"]:
+        if float(cfg["knot.perturbation"]) > 0.0:
+            key = "knot.perturbation"
+        value = cfg[key]
+        raise TemplateError(
+            f"{key}={value:g} is too large: the link has a bond of {longest:.3g} d, longer than "
+            f"run.max_bond_length={cfg['run.max_bond_length']:g}; use a smaller "
+            f"{key}" + (" or leave it unset" if key == "knot.major_radius" else "")
+        )
+
+
+def _close_components(components: list[np.ndarray], limit: float):
+    """``(a, b, distance)`` of components closer than ``limit`` (the first pair found)."""
+    for a in range(len(components)):
+        for b in range(a + 1, len(components)):
+            d = closest_between(components[a], components[b])[0]
+            if d < limit:
+                yield a, b, d
 
 
 # -- several chains ---------------------------------------------------------------------------

@@ -13,7 +13,8 @@ import shutil
 
 import pytest
 
-from knotmm.io.rundir import TOPOLOGY_FILE, TRAJECTORY_FILE, VMD_FILE, vmd_script, write_vmd_script
+from knotmm.io.rundir import TOPOLOGY_FILE, TRAJECTORY_FILE, VMD_FILE
+from knotmm.io.vmd import vmd_script, write_vmd_script
 
 #: The VMD commands view.vmd uses, recording what they are asked to do.
 VMD_STANDINS = r"""
