@@ -10,10 +10,12 @@ process, which pays the start-up of Python, OpenMM, the plugin and numba once in
 times (benchmarks/bench_replicas.py measures it against K single runs).
 
 A replica whose dynamics breaks down (:class:`knotmm.errors.SimulationFault`) is recorded
-as a fault in its run.toml and the others go on; an interruption (Ctrl-C, SIGTERM) stops the
-set with the current replica checkpointed, and :func:`resume_replicas` goes on with every
-replica not finished. ``DIR/replicas.toml`` records the set: the count, the seeds, the
-shared run file.
+as a fault in its run.toml and the others go on; a file that cannot be written (a full disk)
+and an interruption (Ctrl-C, SIGTERM) stop the set with the current replica checkpointed (or,
+stopped at its start, leaving nothing), and :func:`resume_replicas` goes on with every
+replica not finished. A set is checked whole (every refusal of its input) before the lock on
+its directory is taken, and the directory before anything in it is deleted.
+``DIR/replicas.toml`` records the set: the count, the seeds, the shared run file.
 """
 
 from __future__ import annotations
@@ -21,7 +23,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
-import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from knotmm.config import RunConfig
-from knotmm.errors import RunDirectoryError, SimulationFault
+from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault
 from knotmm.io.replica_set import (
     REPLICA_SET_FILE,
     is_replica_set,
@@ -38,8 +39,20 @@ from knotmm.io.replica_set import (
     replica_index,
     write_replica_set,
 )
-from knotmm.io.rundir import RUN_FILE, RUN_FILES, RunLock, read_facts, run_status, writing
-from knotmm.workflow import RunResult, resume, run
+from knotmm.io.rundir import (
+    CHECKPOINT_FILE,
+    RUN_FILE,
+    RUN_FILES,
+    STATUS_FINISHED,
+    OutputError,
+    RunLock,
+    WriteFault,
+    lock_owner,
+    read_facts,
+    run_status,
+    writing,
+)
+from knotmm.workflow import OutputFault, RunResult, build_run, resume, run
 
 __all__ = ["ReplicaSetResult", "replica_seeds", "resume_replicas", "run_replicas"]
 
@@ -115,30 +128,67 @@ def _replica_config(cfg: RunConfig, seed: int, directory: Path) -> RunConfig:
                         "output.directory": str(directory)})
 
 
-def _prepare_set(root: Path, count: int, overwrite: bool) -> None:
-    """Refuse a directory holding something else; with ``overwrite``, clear a former set's
-    replicas beyond ``count`` (knotmm's files only) and the former record."""
+def _check_replicas(cfg: RunConfig, root: Path, seeds: list[int]) -> None:
+    """Every check of the input that can refuse the set, before anything is written.
+
+    Replica 0 is built as :func:`knotmm.workflow.run` builds a run (the integrator against
+    ``run.peclet``, the template and its geometry and overlap checks, the Simulation:
+    :func:`~knotmm.workflow.build_run`); the templates of the others are checked too when
+    the template depends on ``run.seed`` (a perturbation), which replica 1's shows.
+    """
+    from knotmm.shapes.builder import build_template
+
     if root.exists() and not root.is_dir():
         raise RunDirectoryError(f"output directory {str(root)!r} is a file; choose another --out")
-    if not root.exists():
-        return
+    first = None
+    for k, seed in enumerate(seeds):
+        sub = _replica_config(cfg, seed, replica_directory(root, k))
+        if k == 0:
+            first = build_run(sub, identify="skip")[1].positions
+            continue
+        positions = build_template(sub, identify="skip").positions
+        if k == 1 and np.array_equal(positions, first):
+            break  # the start does not depend on the seed: the others are replica 0's
+
+
+def _prepare_set(root: Path, count: int, overwrite: bool, record: dict) -> bytes | None:
+    """In the locked ``root``: refuse a directory holding something else, write the set's
+    record, and with ``overwrite`` clear a former set's replicas beyond ``count`` and a
+    former single run there (knotmm's files only). Nothing is deleted before every refusal
+    and the record's write have passed. Returns the former record's bytes (None if none).
+    """
     entries = [p for p in root.iterdir() if not p.name.startswith(".knotmm")]
-    if not entries:
-        return
-    if not overwrite:
+    if entries and not overwrite:
         what = ("a replica set" if is_replica_set(root)
                 else f"a {run_status(root)} run" if run_status(root) else "other files")
         raise RunDirectoryError(
             f"output directory {str(root)!r} already holds {what}; pass --overwrite to "
             f"replace it, --resume to continue it, or choose another --out"
         )
-    if not is_replica_set(root) and run_status(root) is None:
+    if entries and not is_replica_set(root) and run_status(root) is None:
         raise RunDirectoryError(
             f"output directory {str(root)!r} is not empty and holds no knotmm run; choose "
             f"another --out"
         )
+    for k in range(count):
+        where = replica_directory(root, k)
+        if where.exists() and not where.is_dir():
+            raise RunDirectoryError(
+                f"output directory {str(root)!r}: {where.name} is a file, where replica {k} "
+                f"writes its run; move it away, or choose another --out"
+            )
+    for p in entries:  # a replica resumed on its own (knotmm run --resume DIR/replica_K)
+        owner = lock_owner(p) if replica_index(p.name) is not None else None
+        if owner is not None:
+            raise RunDirectoryError(
+                f"run refused: {str(p)!r} is in use by process {owner or '(unknown)'}; wait "
+                f"for it to end or stop it first"
+            )
+    with writing(root / REPLICA_SET_FILE):
+        previous = ((root / REPLICA_SET_FILE).read_bytes() if is_replica_set(root) else None)
+    write_replica_set(root, record)  # atomic: the former record stays if it fails
     with writing(root):
-        for name in (*RUN_FILES, REPLICA_SET_FILE):  # a single run there before
+        for name in RUN_FILES:  # a single run there before
             with contextlib.suppress(FileNotFoundError):
                 (root / name).unlink()
         for p in root.iterdir():
@@ -149,25 +199,45 @@ def _prepare_set(root: Path, count: int, overwrite: bool) -> None:
                         (p / name).unlink()
                 with contextlib.suppress(OSError):
                     p.rmdir()
+    return previous
 
 
-def _undo_start(root: Path, lock: RunLock, existed: bool) -> None:
-    """Remove what a set that failed at its first replica's start wrote."""
-    lock.release()
-    if not existed:
-        shutil.rmtree(root, ignore_errors=True)
-        return
+def _undo_start(root: Path, lock: RunLock, previous: bytes | None) -> None:
+    """Take back the record of a set whose first replica was refused at its start: the
+    former set's record is put back (``previous``), a new one removed; the directories this
+    start made go when empty."""
+    from knotmm.io.atomic import write_atomic
+
     with contextlib.suppress(OSError):
-        (root / REPLICA_SET_FILE).unlink()
-    first = replica_directory(root, 0)
-    if first.is_dir() and not any(first.iterdir()):
-        first.rmdir()
+        if previous is None:
+            (root / REPLICA_SET_FILE).unlink()
+        else:
+            write_atomic(root / REPLICA_SET_FILE, lambda fh: fh.write(previous))
+    with contextlib.suppress(OSError):
+        replica_directory(root, 0).rmdir()  # only when empty
+    lock.release()
+    if lock.created:
+        with contextlib.suppress(OSError):
+            root.rmdir()
 
 
-def _one(k: int, go, errors: dict[int, str]) -> RunResult | None:
-    """Run or resume replica ``k`` (``go()``); a breakdown is recorded and the set goes on."""
+def _one(k: int, go, errors: dict[int, str], root: Path) -> RunResult | None:
+    """Run or resume replica ``k`` (``go()``); a breakdown of its dynamics is recorded and
+    the set goes on.
+
+    A file that cannot be written (a full disk, no permission: the place, not the replica)
+    stops the set with :class:`~knotmm.io.rundir.WriteFault` (exit code 3): the replicas
+    before it are kept, and a replica that could not start left nothing
+    (:func:`knotmm.io.rundir.starting`), so ``knotmm run --resume`` goes on with it.
+    """
     try:
         return go()
+    except (OutputError, OutputFault) as exc:
+        cause = " ".join(str(exc).split()).split("; the frames written so far")[0]
+        raise WriteFault(
+            f"replica {k} of the set in {str(root)!r} stopped: {cause}; what was written is "
+            f"kept: free the space (or fix the permissions) and run knotmm run --resume {root}"
+        ) from None
     except SimulationFault as exc:
         message = " ".join(str(exc).split())
         log.warning("replica %d broke down: %s", k, message)
@@ -188,8 +258,12 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
     Raises
     ------
     ConfigError, TemplateError, RunDirectoryError, OutputError
-        Bad input or an unusable directory, before anything is written (a bad run file is
-        found by the first replica; the set's directory is then removed if it made it).
+        Bad input, an unusable directory or a live process owning it, before anything in
+        the directory is touched or deleted (the input is checked first, then the lock is
+        taken, then the directory is checked).
+    knotmm.io.rundir.WriteFault
+        A replica's file cannot be written (exit code 3): the set stops, ``knotmm run
+        --resume`` continues it once the cause is gone.
     KeyboardInterrupt, knotmm.engine.interrupt.StopRequested
         An interruption: the running replica is checkpointed, the set can be resumed.
     """
@@ -199,14 +273,20 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
                    wait_for_checks=wait_for_checks)
     wall0 = time.perf_counter()
     root = Path(directory if directory is not None else cfg["output.directory"])
-    existed = root.exists()
-    _prepare_set(root, count, overwrite)
     seeds = replica_seeds(cfg["run.seed"], count)
-    lock = RunLock(root, "run")
+    _check_replicas(cfg, root, seeds)
+    lock = RunLock(root, "run")  # before anything in root is touched
     errors: dict[int, str] = {}
     results: list[RunResult | None] = []
     try:
-        write_replica_set(root, _set_record(cfg, seeds))
+        try:
+            previous = _prepare_set(root, count, overwrite, _set_record(cfg, seeds))
+        except BaseException:
+            if lock.created:
+                lock.release()
+                with contextlib.suppress(OSError):
+                    root.rmdir()
+            raise
         for k, seed in enumerate(seeds):
             where = replica_directory(root, k)
             sub = _replica_config(cfg, seed, where)
@@ -214,10 +294,10 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
             try:
                 results.append(_one(k, lambda sub=sub, where=where: run(
                     sub, directory=where, overwrite=overwrite, progress=progress,
-                    wait_for_checks=wait_for_checks), errors))
-            except (ValueError, RunDirectoryError):  # bad input: ConfigError, TemplateError
+                    wait_for_checks=wait_for_checks), errors, root))
+            except (ValueError, RunDirectoryError):  # refused: a live owner of replica_0, ...
                 if k == 0:  # nothing run yet: leave no half-made set behind
-                    _undo_start(root, lock, existed)
+                    _undo_start(root, lock, previous)
                 raise
     finally:
         lock.release()
@@ -227,20 +307,31 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
 def resume_replicas(directory, progress: bool | None = None, duration: float | None = None,
                     wait_for_checks: bool = False):
     """Continue a run or a replica set: every replica not finished (or, with ``duration``,
-    not that far) goes on from its checkpoint; one never started starts.
+    not that far) goes on from its checkpoint; one never started, or stopped before its
+    first checkpoint, starts from its start.
 
     Returns
     -------
     RunResult or ReplicaSetResult
+
+    Raises
+    ------
+    ConfigError
+        A damaged ``replicas.toml`` (one line naming it).
+    RunDirectoryError
+        Every replica finished already, or a live process owns the directory.
     """
     root = Path(directory)
     if not is_replica_set(root):
         return resume(root, progress=progress, duration=duration,
                       wait_for_checks=wait_for_checks)
     wall0 = time.perf_counter()
-    record = read_replica_set(root)
-    seeds = [int(s) for s in record.get("replicas", {}).get("seeds", [])]
-    cfg = RunConfig.from_dict(record["run_file"])
+    record = read_replica_set(root)  # checked: a damaged record is one line
+    seeds = [int(s) for s in record["replicas"]["seeds"]]
+    try:
+        cfg = RunConfig.from_dict(record["run_file"])
+    except ConfigError as exc:
+        raise ConfigError(f"{root / REPLICA_SET_FILE} [run_file]: {exc}") from None
     if duration is not None:
         cfg = cfg.replace({"run.duration": float(duration)})
     target = float(duration) if duration is not None else cfg["run.duration"]
@@ -256,18 +347,21 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
         for k, seed in enumerate(seeds):
             where = replica_directory(root, k)
             facts = _facts(where)
-            if facts is None:  # never started
+            if facts is None:  # never started, or nothing of it worth keeping
+                if (where / RUN_FILE).exists():
+                    log.info("replica %d stopped before its first checkpoint: it starts "
+                             "again from its start", k)
                 sub = _replica_config(cfg, seed, where)
                 results.append(_one(k, lambda sub=sub, where=where: run(
                     sub, directory=where, overwrite=True, progress=progress,
-                    wait_for_checks=wait_for_checks), errors))
+                    wait_for_checks=wait_for_checks), errors, root))
                 continue
             if _reached(facts, target):
                 results.append(_finished(where, facts))
                 continue
             results.append(_one(k, lambda where=where: resume(
                 where, progress=progress, duration=duration,
-                wait_for_checks=wait_for_checks), errors))
+                wait_for_checks=wait_for_checks), errors, root))
         if duration is not None:
             write_replica_set(root, _set_record(cfg, seeds))
     finally:
@@ -276,8 +370,21 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
 
 
 def _facts(where: Path) -> dict | None:
-    """The ``[knotmm]`` facts of the replica in ``where``; None when it never started."""
-    return read_facts(where) if (where / RUN_FILE).is_file() else None
+    """The ``[knotmm]`` facts of the replica in ``where``; None when it has nothing to go on
+    from: it never started, or it stopped before its first checkpoint (no checkpoint and a
+    run.toml that is not finished, or unreadable), so it starts again from its start."""
+    if not (where / RUN_FILE).is_file():
+        return None
+    checkpointed = (where / CHECKPOINT_FILE).is_file()
+    try:
+        facts = read_facts(where)
+    except ConfigError:
+        if checkpointed:
+            raise
+        return None
+    if not checkpointed and facts.get("status") != STATUS_FINISHED:
+        return None
+    return facts
 
 
 def _reached(facts: dict | None, target: float) -> bool:

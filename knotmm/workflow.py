@@ -6,7 +6,7 @@ reporters in :mod:`knotmm.engine` (``docs/architecture.md``). :func:`run`, as ps
     resolve run.integrator = "auto" and the template; build the Simulation
         (a bad config, template or platform fails here: nothing written)
     lock the directory (a live owner: refused); check it, clear it with overwrite
-    write topology.pdb, view.vmd, run.toml (status = "running")
+    write topology.pdb, view.vmd, run.toml (status = "running"; a failure removes them)
     attach reporters: trajectory, observables, knot checks, checkpoint, progress
     simulation.run(run.duration)   (frame 0 first)
     record the outcome in run.toml: finished, fault (also a file that cannot be written),
@@ -33,6 +33,7 @@ import numpy as np
 from knotmm import __version__
 from knotmm.config import RunConfig, resolve_stepping, resolve_tolerance
 from knotmm.dynamics.registry import AUTO, AUTO_STIFFNESS, REGISTRY, auto_deterministic
+from knotmm.engine.check_record import RECORD_KEY, checks_positions, checks_record, resumed_record
 from knotmm.engine.checkpoint import CheckpointReporter, read_checkpoint
 from knotmm.engine.interrupt import StopRequested, describe_signal, stop_signal
 from knotmm.engine.knot_checks import (
@@ -72,13 +73,14 @@ from knotmm.io.rundir import (
     prepare_directory,
     read_facts,
     retire_stale_analysis,
+    starting,
     write_run_toml,
-    write_vmd_script,
     writing,
 )
+from knotmm.io.vmd import write_vmd_script
 from knotmm.model.layout import ChainLayout
 
-__all__ = ["RESUMABLE_KEYS", "RunResult", "OutputFault", "run", "resume"]
+__all__ = ["RESUMABLE_KEYS", "RunResult", "OutputFault", "build_run", "run", "resume"]
 
 log = logging.getLogger(__name__)
 
@@ -183,14 +185,63 @@ def run(
         the files written so far are kept, a last checkpoint of the last good state is
         written, and ``run.toml`` says ``status = "fault"`` with the message.
     """
-    from knotmm.dynamics.registry import integrator_from_config
     from knotmm.io.pdb import write_pdb
     from knotmm.knots.identify import start_worker
-    from knotmm.shapes.builder import build_template
 
     wall0 = time.perf_counter()
     start_worker()  # topoly's start-up in the knot worker overlaps building the run
     directory = Path(directory if directory is not None else cfg["output.directory"])
+    cfg, template, sim, choice_reason = build_run(cfg, identify="later")  # judged beside it
+    if cfg["output.directory"] != str(directory):
+        cfg = cfg.replace({"output.directory": str(directory)})
+    if directory.exists() and not directory.is_dir():
+        prepare_directory(directory, overwrite)  # says it is a file
+    lock = RunLock(directory, "run")
+    try:
+        with starting(lock, overwrite):  # a start that fails leaves nothing of it behind
+            with writing(directory):
+                write_pdb(directory / TOPOLOGY_FILE, template.positions, layout=template.layout)
+                write_vmd_script(directory, __version__, template.layout.n_chains)
+            facts = {
+                "version": __version__,
+                "status": STATUS_RUNNING,
+                "created": _dt.datetime.now().isoformat(timespec="seconds"),
+                **template.facts,
+                "n_beads": int(template.positions.shape[0]),
+                **({} if template.layout.is_single_ring
+                   else {"layout": template.layout.to_record()}),
+                "engine": sim.engine,
+                "integrator": sim.integrator.describe(),
+                **({"integrator_choice": choice_reason} if choice_reason else {}),
+                "platform": sim.platform_name,
+                "frame_interval": cfg["output.frame_interval"],
+                "start_z": float(sim.positions[:, 2].mean()),
+            }
+            if template.notes:
+                facts["notes"] = list(template.notes)
+            write_run_toml(directory, cfg, facts)
+    except BaseException:
+        lock.release()
+        raise
+    return _drive(sim, cfg, directory, facts, None, progress, wall0, lock, template,
+                  wait_for_checks)
+
+
+def build_run(cfg: RunConfig, identify: str = "now"):
+    """What :func:`run` builds before it writes anything, also ``sweep --dry-run``'s check:
+    the integrator and step resolved and checked, the template with its layout
+    (``[[chains]]``, links, open filaments; ``identify`` as
+    :func:`~knotmm.shapes.builder.build_template`'s), the Simulation on that layout.
+
+    Returns
+    -------
+    tuple
+        ``(cfg, template, sim, choice_reason)``: ``cfg`` resolved, and why ``auto`` chose
+        the integrator (None when named).
+    """
+    from knotmm.dynamics.registry import integrator_from_config
+    from knotmm.shapes.builder import build_template
+
     name, timestep = resolve_stepping(cfg)  # run.toml records what is used, not "auto"
     chosen = cfg["run.integrator"] == AUTO
     by_stiffness = chosen and not math.isfinite(cfg["run.peclet"])
@@ -201,11 +252,9 @@ def run(
                        "run.tolerance": resolve_tolerance(cfg, name)})
     integrator_from_config(cfg)  # checks the integrator against run.peclet before the template
     check_stop_on_change(cfg)
-    template = build_template(cfg, identify="later")  # judged beside the run
+    template = build_template(cfg, identify=identify)
     if template.resolved:
         cfg = cfg.replace(template.resolved)
-    if cfg["output.directory"] != str(directory):
-        cfg = cfg.replace({"output.directory": str(directory)})
     sim = Simulation.from_config(cfg, template.positions, layout=template.layout)
     if by_stiffness:
         stiffness = sim.stiffness()
@@ -221,37 +270,7 @@ def run(
             engine = sim.engine if sim.engine in REGISTRY[choice].engines else None
             sim = Simulation.from_config(cfg, template.positions, engine=engine,
                                          layout=template.layout)
-    if directory.exists() and not directory.is_dir():
-        prepare_directory(directory, overwrite)  # says it is a file
-    lock = RunLock(directory, "run")
-    try:
-        prepare_directory(directory, overwrite)
-        with writing(directory):
-            write_pdb(directory / TOPOLOGY_FILE, template.positions, layout=template.layout)
-            write_vmd_script(directory, __version__, template.layout.n_chains)
-        facts = {
-            "version": __version__,
-            "status": STATUS_RUNNING,
-            "created": _dt.datetime.now().isoformat(timespec="seconds"),
-            **template.facts,
-            "n_beads": int(template.positions.shape[0]),
-            **({} if template.layout.is_single_ring
-               else {"layout": template.layout.to_record()}),
-            "engine": sim.engine,
-            "integrator": sim.integrator.describe(),
-            **({"integrator_choice": choice_reason} if choice_reason else {}),
-            "platform": sim.platform_name,
-            "frame_interval": cfg["output.frame_interval"],
-            "start_z": float(sim.positions[:, 2].mean()),
-        }
-        if template.notes:
-            facts["notes"] = list(template.notes)
-        write_run_toml(directory, cfg, facts)
-    except BaseException:
-        lock.release()
-        raise
-    return _drive(sim, cfg, directory, facts, None, progress, wall0, lock, template,
-                  wait_for_checks)
+    return cfg, template, sim, choice_reason
 
 
 def resume(
@@ -316,10 +335,15 @@ def resume(
                 f"--duration {duration:g}: the checkpoint in {str(directory)!r} is at t = "
                 f"{state['time']:g} tau_d already; give a longer duration"
             )
-        layout = ChainLayout.from_record(facts.get("layout"), len(state["positions"]))
+        from knotmm.io.pdb import read_layout  # the chains as topology.pdb's CONECT say
+
+        layout = ChainLayout.from_record(facts.get("layout"), len(state["positions"]),
+                                         expected=read_layout(directory / TOPOLOGY_FILE),
+                                         chains=facts.get("chains"))
         sim = Simulation.from_config(cfg, state["positions"], layout=layout,
                                      engine=_checkpoint_engine(directory, state["engine"]))
         counters = sim.loadCheckpoint(directory / CHECKPOINT_FILE)
+        resumed = resumed_record(state, facts, cfg, directory / CHECKPOINT_FILE)
         truncate_dcd(directory / TRAJECTORY_FILE, int(counters["frames"]))
         truncate_csv(directory / OBSERVABLES_FILE, int(counters["rows"]))
         stale = directory / ANALYSIS_FILE
@@ -334,7 +358,7 @@ def resume(
         raise
     log.info("resuming %s at t = %g tau_d (step %d)", directory, sim.time, sim.currentStep)
     return _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
-                  wait_for_checks=wait_for_checks)
+                  resumed.template, wait_for_checks, resumed)
 
 
 def _checkpoint_engine(directory: Path, engine: str) -> str:
@@ -391,11 +415,12 @@ def _check_same_physics(directory: Path, cfg: RunConfig, stored: dict | None) ->
 
 
 def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
-           template=None, wait_for_checks=False) -> RunResult:
+           template=None, wait_for_checks=False, resumed=None) -> RunResult:
     """Attach the reporters, run to ``run.duration``, and record the outcome in run.toml.
 
     ``template``: a new run's :class:`knotmm.shapes.builder.Template`, whose knot type is
     judged at the first frame after the knot worker answers (a wrong one stops the run).
+    ``resumed``: what a resumed run's checks continue (``check_record.ResumedChecks``).
     """
     resuming = counters is not None
     counters = counters or {"frames": 0, "rows": 0, "checkpoints": 0, "checks": 0}
@@ -416,13 +441,14 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
             obs = ObservablesReporter(directory / OBSERVABLES_FILE, obs_interval,
                                       append=resuming, first_index=counters["rows"])
         reporters += [dcd, obs]
-        watch = knot_watch(sim, cfg, facts, counters, resuming)
+        record, positions, recorded, _ = resumed or (None, None, None, None)
+        watch = knot_watch(sim, cfg, facts, counters, record, positions)
         if watch is not None:
             reporters.append(watch)
-        links = linking_watch(sim, cfg, facts, resuming)
+        links = linking_watch(sim, cfg, facts, record)
         if links is not None:
             reporters.append(links)
-        judge = TemplateKnotCheck(template, facts, frame_interval)
+        judge = TemplateKnotCheck(template, facts, frame_interval, recorded=recorded)
         if template is not None and template.knot_type_pending:
             reporters.append(judge)
         config = cfg.to_dict()
@@ -434,10 +460,12 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
                 "checkpoints": next_checkpoint,
                 "checks": watch.index if watch else 0,
                 "config": config,
+                RECORD_KEY: checks_record(watch, links, judge),  # what a resumed run goes on
             }
 
         ckpt = CheckpointReporter(directory / CHECKPOINT_FILE, ckpt_interval, current_counters,
-                                  first_index=counters.get("checkpoints", 0))
+                                  first_index=counters.get("checkpoints", 0),
+                                  arrays=lambda: checks_positions(watch))
         duration = cfg["run.duration"]
         bar = ProgressReporter(sim.time, duration, frame_interval, enabled=progress)
         reporters += [ckpt, bar]

@@ -47,13 +47,17 @@ def truncate_csv(path, n_rows: int) -> None:
     if not path.exists():
         raise TrajectoryFileError(f"observables {str(path)!r} are missing; cannot resume")
     with open(path, "rb") as fh:
-        lines = fh.read().split(b"\n")
+        data = fh.read()
+    lines = data.split(b"\n")
     complete = lines[: n_rows + 1]
     if len(complete) < n_rows + 1 or any(not line for line in complete):
         raise TrajectoryFileError(
             f"observables {str(path)!r} hold fewer rows than the checkpoint counts ({n_rows})"
         )
-    with open(path, "wb") as fh:
-        fh.write(b"\n".join(complete) + b"\n")
-        fh.flush()
+    end = sum(len(line) + 1 for line in complete)
+    with open(path, "r+b") as fh:  # cut, never rewritten: a full disk loses no row
+        fh.truncate(min(end, len(data)))
+        if end > len(data):  # the last row kept had lost its line end
+            fh.seek(0, os.SEEK_END)
+            fh.write(b"\n")
         os.fsync(fh.fileno())

@@ -13,6 +13,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+from knotmm.errors import ConfigError
 from knotmm.io.rundir import OutputError, describe_os_error
 
 __all__ = [
@@ -72,13 +73,56 @@ def write_replica_set(root, record: dict[str, Any]) -> None:
 
 
 def read_replica_set(root) -> dict[str, Any]:
-    """The tables of ``replicas.toml``.
+    """The tables of ``replicas.toml``, checked.
+
+    Returns
+    -------
+    dict
+        ``replicas``: a table with ``count`` (int >= 1) and ``seeds`` (``count`` ints in
+        [0, 2**32)); ``run_file``: a table (the shared run file, validated by whoever
+        builds a :class:`~knotmm.config.RunConfig` from it).
 
     Raises
     ------
     knotmm.errors.ConfigError
-        When it is missing or damaged (one line naming the file).
+        When it is missing or damaged (one line naming the file and what is wrong).
     """
     from knotmm.config import read_toml
 
-    return dict(read_toml(Path(root) / REPLICA_SET_FILE, what="replica set record"))
+    path = Path(root) / REPLICA_SET_FILE
+    record = dict(read_toml(path, what="replica set record"))
+    replicas = record.get("replicas")
+    count = replicas.get("count") if isinstance(replicas, dict) else None
+    seeds = replicas.get("seeds") if isinstance(replicas, dict) else None
+    problem = None
+    if not isinstance(replicas, dict):
+        problem = f"a [replicas] table is expected, found {_shown(replicas)}"
+    elif not _is_int(count) or count < 1:
+        problem = f"[replicas] count = {_shown(count)}: a whole number >= 1 is expected"
+    elif not isinstance(seeds, list) or not all(
+            _is_int(s) and 0 <= s < 2**32 for s in seeds):
+        problem = (f"[replicas] seeds = {_shown(seeds)}: a list of whole numbers in "
+                   f"[0, 2**32) is expected")
+    elif len(seeds) != count:
+        problem = f"[replicas] count = {count} but seeds holds {len(seeds)}"
+    elif not isinstance(record.get("run_file"), dict):
+        problem = f"a [run_file] table is expected, found {_shown(record.get('run_file'))}"
+    if problem is not None:
+        raise ConfigError(
+            f"replica set record {str(path)!r} is damaged: {problem}; restore it from a copy "
+            f"(each replica_K/ is a run of its own: knotmm run --resume DIR/replica_K "
+            f"continues one)"
+        )
+    return record
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _shown(value) -> str:
+    """A value as it appears in the message: ``nothing`` when absent, else short."""
+    if value is None:
+        return "nothing"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

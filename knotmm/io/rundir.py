@@ -13,8 +13,8 @@ A run directory is a contract other tools rely on (``docs/architecture.md``):
                     bond (d), current step size, velocity evaluations
 ``checkpoint.npz``  the simulation state to resume from (:mod:`knotmm.engine.checkpoint`)
 ``analysis.json``   what ``knotmm analyze`` found (:mod:`knotmm.analysis.core`)
-``view.vmd``        a VMD script: ``vmd -e RUN_DIR/view.vmd`` (from any directory) loads the
-                    pair, draws the ring and centres the view on it frame by frame
+``view.vmd``        a VMD script (:mod:`knotmm.io.vmd`): ``vmd -e RUN_DIR/view.vmd`` (from any
+                    directory) loads the pair, draws the ring and centres the view on it
 =================== =========================================================================
 
 Every module that names one of these files imports the name from here. While a process
@@ -28,7 +28,6 @@ import contextlib
 import errno
 import fcntl
 import os
-import re
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +46,7 @@ __all__ = [
     "STATUS_FINISHED",
     "STATUS_INTERRUPTED",
     "STATUS_RUNNING",
+    "START_FILES",
     "TOPOLOGY_FILE",
     "TRAJECTORY_FILE",
     "VMD_FILE",
@@ -63,8 +63,8 @@ __all__ = [
     "retire_stale_analysis",
     "run_file_header",
     "run_status",
+    "starting",
     "write_run_toml",
-    "write_vmd_script",
     "writing",
     "writing_output",
 ]
@@ -106,91 +106,6 @@ STATUS_FAULT = "fault"
 #: Stopped by a signal (Ctrl-C, SIGTERM); ``message`` names it.
 STATUS_INTERRUPTED = "interrupted"
 STATUSES = (STATUS_RUNNING, STATUS_FINISHED, STATUS_FAULT, STATUS_INTERRUPTED)
-
-VMD_SCRIPT = """\
-# VMD script written by knotmm @VERSION@. Open it from any directory:
-#     vmd -e RUN_DIR/view.vmd        or, in VMD's Tk console:  source RUN_DIR/view.vmd
-# It loads topology.pdb and trajectory.dcd of its run directory and centres the view on the
-# chain in every frame, so that the falling ring stays in sight (knotmm_follow off: the lab
-# frame, where it falls out of view). Lengths are in Angstrom: one bead diameter d = 10 A.
-proc knotmm_run_directory {recorded} {
-    # source sets info script; vmd -e reads the file line by line and leaves it empty, so
-    # the directory the run was written in comes next, then the current directory
-    set candidates [list]
-    if {[info script] ne ""} {
-        lappend candidates [file dirname [file normalize [info script]]]
-    }
-    lappend candidates $recorded [pwd]
-    foreach dir $candidates {
-        set pdb [file join $dir @TOPOLOGY@]
-        set dcd [file join $dir @TRAJECTORY@]
-        if {[file isfile $pdb] && [file isfile $dcd]} {
-            return $dir
-        }
-    }
-    set message "view.vmd: no @TOPOLOGY@ and @TRAJECTORY@ in [join $candidates {, }]"
-    append message "; open view.vmd in its run directory: cd RUN_DIR; vmd -e view.vmd"
-    error $message
-}
-set knotmm_dir [knotmm_run_directory @RUN_DIR@]
-set knotmm_mol [mol new [file join $knotmm_dir @TOPOLOGY@] type pdb waitfor all]
-mol addfile [file join $knotmm_dir @TRAJECTORY@] type dcd first 0 last -1 step 1 waitfor all
-set knotmm_beads [atomselect $knotmm_mol all]
-$knotmm_beads global
-$knotmm_beads set radius 5.0
-mol delrep 0 $knotmm_mol
-mol representation VDW 1.0 16
-mol color ResID
-mol material AOChalky
-mol addrep $knotmm_mol
-mol representation Bonds 2.0 12
-mol color ResID
-mol addrep $knotmm_mol
-display projection Orthographic
-axes location LowerLeft
-# Follow the chain: VMD sets vmd_frame(molid) at every frame change; the trace moves the
-# molecule's centre (molinfo ... set center) to the centre of the beads in that frame.
-proc knotmm_centre {args} {
-    global knotmm_mol knotmm_beads
-    $knotmm_beads frame [molinfo $knotmm_mol get frame]
-    molinfo $knotmm_mol set center [list [measure center $knotmm_beads]]
-}
-proc knotmm_follow {{how on}} {
-    global knotmm_mol vmd_frame
-    trace remove variable vmd_frame($knotmm_mol) write knotmm_centre
-    if {$how eq "on"} {
-        trace add variable vmd_frame($knotmm_mol) write knotmm_centre
-        knotmm_centre
-    }
-}
-animate goto 0
-knotmm_follow on
-"""
-
-
-def _tcl_word(text: str) -> str:
-    """``text`` as one Tcl word, in double quotes with Tcl's special characters escaped."""
-    escaped = re.sub(r'([\\$\[\]"])', r"\\\1", str(text))
-    return '"' + escaped.replace("\n", "\\n").replace("\r", "\\r").replace("\t", "\\t") + '"'
-
-
-def vmd_script(directory, version: str, n_chains: int = 1) -> str:
-    """The text of ``view.vmd`` for the run directory ``directory``.
-
-    One chain is coloured along its beads (VMD's ``ResID``), several chains one colour each
-    (``Chain``).
-
-    The script finds its files relative to itself where VMD says where it is (``source``)
-    and else in ``directory`` as written here (absolute) or the current directory
-    (``vmd -e`` gives a script no name), so it works from any directory, and from a run
-    directory that was moved when it is opened there.
-    """
-    text = VMD_SCRIPT.replace("@VERSION@", version)
-    if n_chains > 1:
-        text = text.replace("mol color ResID", "mol color Chain")
-    text = text.replace("@TOPOLOGY@", TOPOLOGY_FILE).replace("@TRAJECTORY@", TRAJECTORY_FILE)
-    return text.replace("@RUN_DIR@", _tcl_word(os.path.abspath(directory)))
-
 
 class OutputError(KnotmmError, OSError):
     """A file of a run directory cannot be written (read-only, full disk, no permission).
@@ -246,11 +161,13 @@ def write_run_toml(directory, cfg, facts: dict[str, Any]) -> None:
     facts : dict
         The ``[knotmm]`` table; None values are left out.
 
-    Notes
-    -----
-    If the atomic write fails (a full disk has no room for the temporary copy), the file is
-    rewritten in place, so that a run never leaves ``status = "running"`` behind when it
-    can help it; :class:`OutputError` if that fails too.
+    Raises
+    ------
+    OutputError
+        If it cannot be written (a full disk has no room for the temporary copy): the file
+        is then as it was (its former content, or absent), never empty or cut short. A run
+        that cannot record its end this way keeps ``status = "running"`` with no live lock,
+        as a killed run does, and ``knotmm run --resume`` goes on from its checkpoint.
     """
     import tomli_w
 
@@ -263,15 +180,8 @@ def write_run_toml(directory, cfg, facts: dict[str, Any]) -> None:
     path = Path(directory) / RUN_FILE
     try:
         write_text_atomic(path, text)
-    except OSError as first:
-        try:
-            with open(path, "r+b" if path.exists() else "wb") as fh:
-                fh.truncate(0)
-                fh.write(text.encode("utf-8"))
-                fh.flush()
-                os.fsync(fh.fileno())
-        except OSError:
-            raise OutputError(describe_os_error(path, first)) from None
+    except OSError as exc:
+        raise OutputError(describe_os_error(path, exc)) from None
 
 
 def read_facts(directory) -> dict[str, Any]:
@@ -290,13 +200,6 @@ def run_status(directory) -> str | None:
         return str(read_facts(directory).get("status", "unknown"))
     except ConfigError:
         return "unreadable"
-
-
-def write_vmd_script(directory, version: str, n_chains: int = 1) -> None:
-    """Write ``view.vmd`` (atomically): :func:`vmd_script`."""
-    from knotmm.io.atomic import write_text_atomic
-
-    write_text_atomic(Path(directory) / VMD_FILE, vmd_script(directory, version, n_chains))
 
 
 # -- preparing and owning a directory -------------------------------------------------------
@@ -338,6 +241,42 @@ def prepare_directory(directory, overwrite: bool) -> None:
             p.unlink()
 
 
+#: The files a new run writes before its first step (:func:`starting`).
+START_FILES = (TOPOLOGY_FILE, VMD_FILE, RUN_FILE)
+
+
+@contextlib.contextmanager
+def starting(lock: RunLock, overwrite: bool):
+    """Prepare a locked directory for a new run and write its first files in the block.
+
+    :func:`prepare_directory` checks (and with ``overwrite`` clears) ``lock.directory``
+    first; after it none of :data:`START_FILES` is there. When the block fails (a full disk,
+    no permission, an interruption), the files of :data:`START_FILES` it wrote are removed,
+    the lock is released and a directory the lock created is removed, so that the same
+    command works again once the cause is gone (the directory does not hold a half-made
+    run). A refusal of :func:`prepare_directory` removes nothing.
+
+    Parameters
+    ----------
+    lock : RunLock
+        The lock of the run's directory, held.
+    overwrite : bool
+        As for :func:`prepare_directory`.
+    """
+    prepare_directory(lock.directory, overwrite)
+    try:
+        yield
+    except BaseException:
+        for name in START_FILES:
+            with contextlib.suppress(OSError):
+                (lock.directory / name).unlink()
+        lock.release()
+        if lock.created:
+            with contextlib.suppress(OSError):
+                lock.directory.rmdir()
+        raise
+
+
 class RunLock:
     """Exclusive ownership of a run directory for a process's run (``fcntl.flock``).
 
@@ -365,11 +304,19 @@ class RunLock:
         self.directory = Path(directory)
         self.path = self.directory / LOCK_FILE
         self._fd: int | None = None
+        #: Whether taking the lock created the directory (:func:`starting` removes it again).
+        self.created = not self.directory.exists()
         with writing(self.directory):
             self.directory.mkdir(parents=True, exist_ok=True)
         while self._fd is None:
-            with writing(self.path):
-                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                with writing(self.path):
+                    fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OutputError:
+                if self.created:  # no lock, no empty directory left behind
+                    with contextlib.suppress(OSError):
+                        self.directory.rmdir()
+                raise
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as exc:

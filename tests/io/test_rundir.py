@@ -84,10 +84,9 @@ def test_run_toml_is_a_run_file_plus_facts(tmp_path):
     assert run_status(tmp_path / "none") is None
 
 
-def test_run_toml_is_rewritten_in_place_when_the_atomic_copy_finds_no_space(
-        tmp_path, monkeypatch):
-    """A full disk has no room for the temporary copy: the status must still get out of
-    "running" (issue 11, item 4)."""
+def test_run_toml_is_kept_whole_when_the_atomic_copy_finds_no_space(tmp_path, monkeypatch):
+    """A full disk has no room for the temporary copy: run.toml stays as it was, whole
+    (issue 30, BUG-8: the in-place rewrite of issue 11 could leave it empty)."""
     cfg = RunConfig.from_dict({})
     write_run_toml(tmp_path, cfg, {"status": "running"})
 
@@ -95,8 +94,9 @@ def test_run_toml_is_rewritten_in_place_when_the_atomic_copy_finds_no_space(
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
 
     monkeypatch.setattr(knotmm.io.atomic, "write_text_atomic", full)
-    write_run_toml(tmp_path, cfg, {"status": "fault", "message": "disk full"})
-    assert read_toml(tmp_path / RUN_FILE)["knotmm"]["status"] == "fault"
+    with pytest.raises(OutputError, match="no space left"):
+        write_run_toml(tmp_path, cfg, {"status": "fault", "message": "disk full"})
+    assert read_toml(tmp_path / RUN_FILE)["knotmm"]["status"] == "running"
     assert sorted(p.name for p in tmp_path.iterdir()) == [RUN_FILE]
 
 
