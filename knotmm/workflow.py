@@ -163,14 +163,12 @@ def run(
     overwrite : bool
         Replace an existing run in ``directory``.
     progress : bool, optional
-        Show a progress bar; default: a bar when standard error is a terminal, else a line
-        every 10 % or 30 s.
+        A progress bar; default: a bar on a terminal, else a line every 10 % or 30 s.
     wait_for_checks : bool, optional
-        At the end, wait for the knot checks still under way even while the knot worker is
-        starting (topoly's import, seconds). By default they are waited for only once it is
-        up, and otherwise recorded as not made (``knot_type_checks_dropped``, a note for the
-        template), so that a short run does not wait for topoly; a run with
-        ``run.on_topology_change = "stop"`` always waits.
+        At the end, wait for the knot checks under way even while the knot worker starts
+        (topoly's import, seconds). By default they are waited for only once it is up, else
+        recorded as not made (``knot_type_checks_dropped``, a note for the template), so a
+        short run does not wait for topoly; ``run.on_topology_change = "stop"`` always waits.
 
     Returns
     -------
@@ -328,6 +326,10 @@ def resume(
                 f"{facts.get('time_reached', cfg['run.duration'])} tau_d; pass --duration T "
                 f"with a larger T to extend it"
             )
+        if not (directory / CHECKPOINT_FILE).exists():  # stopped before its first one
+            lock.release()  # run() takes it again, and starts from the start
+            return run(cfg, directory, overwrite=True, progress=progress,
+                       wait_for_checks=wait_for_checks)
         state = read_checkpoint(directory / CHECKPOINT_FILE)
         _check_same_physics(directory, cfg, state["counters"].get("config"))
         if duration is not None and float(duration) < state["time"]:
@@ -550,6 +552,11 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
             with _signals_held():  # a second Ctrl-C must not leave status = "running"
                 retire_stale_analysis(directory)  # an analysis made while it ran
                 write_run_toml(directory, cfg, facts)
+        except OutputError as exc:  # after a failed run, that failure is the one reported
+            if status == STATUS_FINISHED:  # frames and checkpoint whole: exit 3, resumable
+                raise OutputFault(f"{exc}; the frames and checkpoint are kept: free the "
+                                  f"space and run knotmm run --resume {directory}") from None
+            log.warning("%s", exc)
         finally:
             lock.release()
     return result
