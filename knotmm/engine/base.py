@@ -82,8 +82,8 @@ class Engine:
         knotmm.errors.SimulationFault
             At the first bad step; ``sim`` then holds the last good state.
         knotmm.engine.interrupt.StopRequested
-            A stop asked for by a signal, between two steps (engines that step from
-            Python).
+            A stop asked for by a signal, between two steps (the plugin engine: between two
+            of its C++ calls, at most about a second apart).
         """
         raise NotImplementedError
 

@@ -29,10 +29,22 @@ plugin's own table (:data:`knotmm.plugin.METHODS`).
 Both engines take the same steps for deterministic methods (positions equal to 1e-10 d over
 1 tau_d on the Reference platform); the Brownian methods use different noise streams with
 the same statistics.
+
+``run.platform = "auto"`` (:func:`auto_platform`) is decided after the engine, for it: the CPU
+platform (Reference where OpenMM has no CPU platform), unless the engine can use a device
+platform (the Python engine: the plugin has kernels only for Reference and CPU), the chain
+has at least :data:`DEVICE_MIN_BEADS` beads, and a device platform is real
+(:func:`device_properties`): CUDA or HIP with a device, or an OpenCL implementation that
+OpenMM supports (NVIDIA, AMD, Apple, Intel: the vendors OpenMM itself does not warn about)
+with a GPU that has double precision, which the run is then pinned to. A CPU implementation
+such as pocl, which OpenMM runs with "WARNING: Using an unsupported OpenCL implementation",
+is never taken (issue 30).
 """
 
 from __future__ import annotations
 
+import ctypes
+import functools
 import importlib
 import logging
 import math
@@ -40,7 +52,20 @@ import math
 from knotmm.dynamics import registry
 from knotmm.errors import ConfigError
 
-__all__ = ["ENGINES", "PLUGIN", "PYTHON", "PLUGIN_PLATFORMS", "make_engine", "resolve_engine"]
+__all__ = [
+    "DEVICE_MIN_BEADS",
+    "DEVICE_PLATFORMS",
+    "ENGINES",
+    "PLUGIN",
+    "PLUGIN_PLATFORMS",
+    "PYTHON",
+    "auto_platform",
+    "device_properties",
+    "make_engine",
+    "opencl_device",
+    "platform_names",
+    "resolve_engine",
+]
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +75,13 @@ PYTHON = registry.PYTHON_ENGINE
 ENGINES = ("auto", PLUGIN, PYTHON)
 #: OpenMM platforms the plugin has a kernel for (CPU shares the Reference kernel).
 PLUGIN_PLATFORMS = ("Reference", "CPU")
+#: Device platforms ``run.platform = "auto"`` may take for the Python engine, best first.
+DEVICE_PLATFORMS = ("CUDA", "HIP", "OpenCL")
+#: Beads from which ``run.platform = "auto"`` considers a device platform.
+DEVICE_MIN_BEADS = 2000
+#: OpenCL platform vendors OpenMM supports (``OpenCLContext``'s ``isSupported``: any other
+#: makes it print "WARNING: Using an unsupported OpenCL implementation").
+OPENCL_VENDORS = ("NVIDIA", "Advanced Micro Devices", "Apple", "Intel")
 #: Engine name -> (module, class) of its :class:`knotmm.engine.base.Engine`.
 _ENGINE_CLASSES = {
     PYTHON: ("knotmm.engine.python_engine", "PythonEngine"),
@@ -97,7 +129,8 @@ def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
         ``run.peclet``. The plugin runs Brownian and deterministic runs alike, so it does
         not change the choice; kept so callers can pass it.
     platform : str
-        The OpenMM platform's name (resolved, not ``"auto"``).
+        The OpenMM platform's name, or ``"auto"``, which :func:`auto_platform` resolves for
+        the engine chosen here (the CPU for the plugin).
     noise_method : {"cholesky", "lanczos"}
         How a Brownian run's noise is drawn (``run.noise`` resolved for the chain's size,
         :meth:`knotmm.dynamics.noise.NoiseGenerator.method_for`). Both engines draw either
@@ -129,15 +162,163 @@ def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
             log.warning("run.engine = \"plugin\": run.integrator = %r has no plugin "
                         "counterpart; using the Python engine", integrator)
             return PYTHON
-        if platform not in PLUGIN_PLATFORMS:
+        if platform != "auto" and platform not in PLUGIN_PLATFORMS:
             log.warning("run.engine = \"plugin\": the plugin has no kernel for the %s platform "
                         "(only %s); using the Python engine", platform,
                         " and ".join(PLUGIN_PLATFORMS))
             return PYTHON
         return PLUGIN
-    if not has_method or platform not in PLUGIN_PLATFORMS:
+    if not has_method or (platform != "auto" and platform not in PLUGIN_PLATFORMS):
         return PYTHON
     return PLUGIN
+
+
+def platform_names() -> list[str]:
+    """The names of the OpenMM platforms that loaded in this process."""
+    import openmm
+
+    return [openmm.Platform.getPlatform(i).getName()
+            for i in range(openmm.Platform.getNumPlatforms())]
+
+
+def auto_platform(n_beads: int, engine: str, available: list[str] | None = None,
+                  probe=None) -> tuple[str, dict[str, str]]:
+    """The platform ``run.platform = "auto"`` takes for a run of ``n_beads`` on ``engine``.
+
+    The CPU platform (Reference where there is none), unless ``engine`` is the Python engine,
+    ``n_beads >= DEVICE_MIN_BEADS`` and one of :data:`DEVICE_PLATFORMS` is available and
+    real by ``probe``: then the first such, with the properties that pin it to its device.
+
+    Parameters
+    ----------
+    n_beads : int
+        The run's beads.
+    engine : {"plugin", "python"}
+        The engine chosen (:func:`resolve_engine`); the plugin only runs on Reference and CPU.
+    available : list of str, optional
+        OpenMM's platform names; default :func:`platform_names`.
+    probe : callable, optional
+        ``probe(name)``: the properties that pin a real device of platform ``name``, or None
+        when it has none that OpenMM supports; default :func:`device_properties`.
+
+    Returns
+    -------
+    tuple of (str, dict)
+        The platform's name and the properties it needs (empty for the CPU).
+    """
+    available = platform_names() if available is None else available
+    probe = device_properties if probe is None else probe
+    cpu = "CPU" if "CPU" in available else "Reference"
+    if engine != PYTHON or n_beads < DEVICE_MIN_BEADS:
+        return cpu, {}
+    for name in DEVICE_PLATFORMS:
+        if name in available:
+            properties = probe(name)
+            if properties is not None:
+                return name, dict(properties)
+    return cpu, {}
+
+
+@functools.cache
+def device_properties(name: str) -> dict[str, str] | None:
+    """Whether the device platform ``name`` has a device OpenMM supports, and how to pin it.
+
+    ``"CUDA"``, ``"HIP"``: ``{}`` when the driver (``libcuda``, ``libamdhip64``) counts at
+    least one device. ``"OpenCL"``: the ``OpenCLPlatformIndex`` and ``DeviceIndex`` of
+    :func:`opencl_device` on the installed implementations. None otherwise (another name, a
+    library that does not load, no device, only an unsupported OpenCL such as pocl). Asked
+    once per process.
+    """
+    try:
+        if name == "OpenCL":
+            return opencl_device(_opencl_platforms())
+        if name == "CUDA":
+            lib = ctypes.CDLL("libcuda.so.1")
+            count = ctypes.c_int(0)
+            ok = lib.cuInit(0) == 0 and lib.cuDeviceGetCount(ctypes.byref(count)) == 0
+            return {} if ok and count.value > 0 else None
+        if name == "HIP":
+            lib = ctypes.CDLL("libamdhip64.so")
+            count = ctypes.c_int(0)
+            ok = lib.hipGetDeviceCount(ctypes.byref(count)) == 0
+            return {} if ok and count.value > 0 else None
+    except (OSError, AttributeError):  # no such library or function: no device
+        return None
+    return None
+
+
+def opencl_device(platforms) -> dict[str, str] | None:
+    """The OpenCL device ``run.platform = "auto"`` may take, as OpenMM platform properties.
+
+    Parameters
+    ----------
+    platforms : sequence of (str, sequence of (bool, bool))
+        Per OpenCL platform, in OpenCL's order: its vendor and, per device (in the order of
+        ``CL_DEVICE_TYPE_ALL``, OpenMM's ``DeviceIndex``), whether it is a GPU and whether it
+        has double precision (``cl_khr_fp64``: the mixed precision knotmm asks for).
+
+    Returns
+    -------
+    dict or None
+        ``{"OpenCLPlatformIndex": j, "DeviceIndex": i}`` (strings) of the first GPU with
+        double precision on a platform of a vendor OpenMM supports (:data:`OPENCL_VENDORS`);
+        None if there is none (e.g. only pocl, a CPU implementation).
+    """
+    for j, (vendor, devices) in enumerate(platforms):
+        if not str(vendor).startswith(OPENCL_VENDORS):
+            continue
+        for i, (gpu, fp64) in enumerate(devices):
+            if gpu and fp64:
+                return {"OpenCLPlatformIndex": str(j), "DeviceIndex": str(i)}
+    return None
+
+
+def _opencl_platforms() -> list[tuple[str, list[tuple[bool, bool]]]]:
+    """The installed OpenCL platforms for :func:`opencl_device`, read through ``libOpenCL``."""
+    cl = ctypes.CDLL("libOpenCL.so.1")
+    u32, size, ptr = ctypes.c_uint32, ctypes.c_size_t, ctypes.c_void_p
+    cl.clGetPlatformIDs.argtypes = [u32, ctypes.POINTER(ptr), ctypes.POINTER(u32)]
+    cl.clGetPlatformInfo.argtypes = [ptr, u32, size, ptr, ctypes.POINTER(size)]
+    cl.clGetDeviceIDs.argtypes = [ptr, ctypes.c_uint64, u32, ctypes.POINTER(ptr),
+                                  ctypes.POINTER(u32)]
+    cl.clGetDeviceInfo.argtypes = [ptr, u32, size, ptr, ctypes.POINTER(size)]
+
+    def text(get, handle, key) -> str:
+        length = size(0)
+        if get(handle, key, 0, None, ctypes.byref(length)) != 0:
+            return ""
+        buffer = ctypes.create_string_buffer(length.value)
+        if get(handle, key, length, ctypes.cast(buffer, ptr), None) != 0:
+            return ""
+        return buffer.value.decode("utf-8", "replace")
+
+    count = u32(0)
+    if cl.clGetPlatformIDs(0, None, ctypes.byref(count)) != 0 or count.value == 0:
+        return []
+    ids = (ptr * count.value)()
+    if cl.clGetPlatformIDs(count.value, ids, None) != 0:
+        return []
+    out = []
+    for platform in ids:
+        n = u32(0)
+        devices = []
+        if cl.clGetDeviceIDs(platform, _CL_ALL, 0, None, ctypes.byref(n)) == 0 and n.value:
+            handles = (ptr * n.value)()
+            if cl.clGetDeviceIDs(platform, _CL_ALL, n.value, handles, None) == 0:
+                for device in handles:
+                    kind = ctypes.c_uint64(0)
+                    cl.clGetDeviceInfo(device, _CL_DEVICE_TYPE, ctypes.sizeof(kind),
+                                       ctypes.cast(ctypes.byref(kind), ptr), None)
+                    fp64 = "cl_khr_fp64" in text(cl.clGetDeviceInfo, device, _CL_EXTENSIONS)
+                    devices.append((bool(kind.value & _CL_GPU), fp64))
+        out.append((text(cl.clGetPlatformInfo, platform, _CL_PLATFORM_VENDOR), devices))
+    return out
+
+
+# OpenCL constants (cl.h): CL_DEVICE_TYPE_ALL, CL_DEVICE_TYPE_GPU, CL_PLATFORM_VENDOR,
+# CL_DEVICE_TYPE, CL_DEVICE_EXTENSIONS
+_CL_ALL, _CL_GPU = 0xFFFFFFFF, 1 << 2
+_CL_PLATFORM_VENDOR, _CL_DEVICE_TYPE, _CL_EXTENSIONS = 0x0903, 0x1000, 0x1030
 
 
 def _plugin_has(plugin, integrator: str) -> bool:

@@ -4,23 +4,26 @@
 :class:`~knotmm.plugin.RPYIntegrator` to its OpenMM Context (same method, step, tolerance,
 step bounds; ``kT = 1 / run.peclet`` in F0 d; the seed from ``run.seed``; the noise method,
 ``run.noise`` resolved for the chain's size, and ``run.lanczos_tolerance``) and hands each
-stretch up to the next report time to :meth:`PluginEngine.advance_to`, one ``stepTo`` call
-in C++. Then Python reads the positions (float64) once, updates the Simulation's time and the
-engine's counters (steps, evaluations, rejections: the plugin's since the stretch began; the
-step size is the plugin's), and runs the Python engine's state checks (finite positions,
-bonds below ``run.max_bond_length``).
+stretch up to the next report time to :meth:`PluginEngine.advance_to`. The stretch is
+stepped in C++ by ``stepToWithin(target, chunk_seconds)`` calls, each of which gives control
+back between two steps once :attr:`PluginEngine.chunk_seconds` of wall-clock time are spent
+(issue 30: one ``stepTo`` call for the whole stretch held a blown-up run, or one whose step
+is far below the stretch, in C++ for minutes, deaf to SIGINT and SIGTERM). After each call
+Python reads the positions (float64) once, updates the Simulation's time and the engine's
+counters (steps, evaluations, rejections: the plugin's since the call began; the step size is
+the plugin's), runs the Python engine's state checks (finite positions, bonds below
+``run.max_bond_length``) and takes a stop asked for by a signal
+(:func:`knotmm.engine.interrupt.raise_if_requested`). Where the calls end never changes a
+step: the steps are those of one ``stepTo(target)``, so runs, checkpoints and resumed runs
+are the same bit for bit whatever the machine's speed.
 
-A fault inside a stretch is found exactly where the Python engine would find it: the stretch
-is taken again from the Context checkpoint made at its start, one accepted step at a time
-(:meth:`PluginEngine.advance_one`, the same steps as ``stepTo`` takes), with the checks
-after each, so the fault names the same time, step, bead and value, and the last good state
-is the one kept. A failed plugin step raises :class:`knotmm.plugin.StepFault` (an
+A fault inside a call is found exactly where the Python engine would find it: the call's
+steps are taken again from the Context checkpoint made at its start, one accepted step at a
+time (:meth:`PluginEngine.advance_one`, ``stepToWithin(target, 0)``: the same steps), with the
+checks after each, so the fault names the same time, step, bead and value, and the last good
+state is the one kept. A failed plugin step raises :class:`knotmm.plugin.StepFault` (an
 ``openmm.OpenMMException`` that says its ``kind``, ``bead`` and ``error_estimate``): a step-size
 underflow or non-finite positions become the Python engine's messages too.
-
-One limit of the step-by-step replay: the last step of a stretch is taken by
-``stepTo(target)``; if error control rejects it, ``stepTo`` takes two accepted steps in that
-call and a fault after the first of them is reported at the second.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import openmm
 from openmm import unit
 
 from knotmm.engine.base import Engine
+from knotmm.engine.interrupt import raise_if_requested
 from knotmm.engine.openmm_state import state_array
 from knotmm.engine.schedule import landing_slack
 from knotmm.errors import SimulationFault
@@ -58,9 +62,15 @@ class PluginEngine(Engine):
     ----------
     rpy, openmm_integrator : knotmm.plugin.RPYIntegrator
         The OpenMM integrator the Simulation's Context is created with.
+    chunk_seconds : float
+        Wall-clock seconds one C++ call steps before it gives control back, between two
+        steps (a single step that takes longer ends its call when it is done): how soon a
+        signal, a stop request or a bad state is seen. It decides where calls end, never a
+        step.
     """
 
     name = "plugin"
+    chunk_seconds = 0.25
 
     def __init__(self, integrator, threads: int = 1, n_beads: int | None = None):
         from knotmm.plugin import from_python_integrator
@@ -129,50 +139,62 @@ class PluginEngine(Engine):
 
     # -- stepping -----------------------------------------------------------------------
     def advance_to(self, sim, target: float) -> None:
-        """Advance ``sim`` to ``target`` (tau_d) in one ``stepTo`` call, then check the state.
+        """Advance ``sim`` to ``target`` (tau_d) in calls of :attr:`chunk_seconds` each.
+
+        Between two calls the state is checked and a stop asked for by a signal is taken.
 
         Raises
         ------
         SimulationFault
-            As the Python engine would, at the first bad step (found by replaying the
-            stretch); ``sim`` then holds the last good state.
+            As the Python engine would, at the first bad step (found by replaying the call
+            that reached it); ``sim`` then holds the last good state.
+        knotmm.engine.interrupt.StopRequested
+            A stop asked for by a signal, between two calls; ``sim`` holds a whole step.
         """
+        while not self._advance_within(sim, target):
+            raise_if_requested()
+
+    def _advance_within(self, sim, target: float) -> bool:
+        """One ``stepToWithin(target, chunk_seconds)`` call, checked; True at ``target``."""
         sim.sync_context()  # reporters may have moved the Context's positions
         start = sim.context.createCheckpoint()
         before = self._counts()
+        failed = False
         try:
             with sim.core_pin.stepping():  # OpenMM's pool thread on this core: same bits
-                self.rpy.stepTo(target)
+                reached = self.rpy.stepToWithin(target, self.chunk_seconds)
         except openmm.OpenMMException:
-            fine = False
-        else:
-            y, t = self._read(sim)
-            fine = self._fine(sim, y)
-        if fine:
+            failed = True  # the plugin kept the last good state, before the failed step
+        y, t = self._read(sim)
+        if not failed and self._fine(sim, y):
             sim.positions = y
             sim.time = t
             self._count(before)
-            return
-        sim.context.loadCheckpoint(start)  # the counters go back with it
-        while sim.time < target - landing_slack(target):
+            return bool(reached)
+        # Take the call's steps again, one at a time and checked: the fault is raised at the
+        # step the Python engine would name. The counters go back with the checkpoint.
+        sim.context.loadCheckpoint(start)
+        while sim.time < t - landing_slack(t):
             self.advance_one(sim, target)
+        if failed:
+            self.advance_one(sim, target)  # the step that failed: raises its fault
+        return target - sim.time <= landing_slack(target)
 
     def advance_one(self, sim, target: float) -> float:
-        """One accepted step of at most ``target - sim.time`` (what ``stepTo`` would take)."""
+        """One accepted step of at most ``target - sim.time`` (a step ``stepTo`` would take)."""
         from knotmm.plugin import StepFault
 
         sim.sync_context()  # reporters may have moved the Context's positions
         remaining = target - sim.time
         before = self._counts()
         h = self._step_size()
-        landing = math.isfinite(target) and not sim.time + h < target - landing_slack(target)
         last_good = sim.context.createCheckpoint()
         try:
             with sim.core_pin.stepping():
-                if landing:
-                    self.rpy.stepTo(target)
+                if math.isfinite(target):
+                    self.rpy.stepToWithin(target, 0.0)  # exactly one of stepTo's steps
                 else:
-                    self.rpy.step(1)  # not clipped by the target: the same step stepTo takes
+                    self.rpy.step(1)
         except openmm.OpenMMException as exc:
             self._count(before, steps=False)  # the plugin kept the last good state
             fault = exc if isinstance(exc, StepFault) else None

@@ -149,10 +149,12 @@ if _rpy is not None:
             f"installed; rebuild it: {REBUILD_COMMAND}"
         )
         _rpy, _rebuild_needed = None, True
-    elif not all(hasattr(_rpy, name) for name in ("methodTable", "StepFault")):
+    elif not (all(hasattr(_rpy, name) for name in ("methodTable", "StepFault"))
+              and hasattr(_rpy.RPYIntegrator, "stepToWithin")):
         _load_error = (
             "knotmm.plugin: the compiled plugin is older than knotmm's Python files (no "
-            f"methodTable or StepFault); rebuild it: {REBUILD_COMMAND}"
+            f"methodTable, StepFault or RPYIntegrator.stepToWithin); rebuild it: "
+            f"{REBUILD_COMMAND}"
         )
         _rpy, _rebuild_needed = None, True
 if _rpy is not None:
@@ -301,7 +303,11 @@ if _rpy is not None:
         Notes
         -----
         OpenMM-style methods: ``step(n)`` takes ``n`` accepted steps; ``stepTo(time)`` advances
-        to ``time`` (ps) exactly, shortening the last step; ``getStepSize()`` is the next step
+        to ``time`` (ps) exactly, shortening the last step; ``stepToWithin(time, seconds)``
+        takes the same steps but returns between two of them once ``seconds`` of wall-clock
+        time are spent (0: after one step), True when ``time`` is reached, so that a caller
+        answers signals and checks the state during a long stretch (the steps, and so the
+        results, do not depend on where the calls end); ``getStepSize()`` is the next step
         an adaptive method will try. Counters: ``getNumForceEvaluations()``,
         ``getNumAcceptedSteps()``, ``getNumRejectedSteps()``; rkc2 also
         ``getLastStages()`` and ``getSpectralRadius()`` (1/ps). The adaptive state, the

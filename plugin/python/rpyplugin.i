@@ -247,6 +247,7 @@ public:
     void setSpectralRadiusStartVector(const std::vector<Vec3>& v);
     virtual void step(int steps);
     void stepTo(double time);
+    bool stepToWithin(double time, double maxSeconds);
     long long getNumForceEvaluations() const;
 %extend {
     // groups: a sequence of ints (0..31); returns a tuple of floats, kJ/mol, one per group.

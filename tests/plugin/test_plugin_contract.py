@@ -66,6 +66,7 @@ def _failing_step(sim, monkeypatch, exc):
 
     monkeypatch.setattr(sim.openmm_integrator, "step", fail)
     monkeypatch.setattr(sim.openmm_integrator, "stepTo", fail)
+    monkeypatch.setattr(sim.openmm_integrator, "stepToWithin", fail)
 
 
 def test_a_non_finite_fault_names_its_bead_whatever_its_text(monkeypatch):

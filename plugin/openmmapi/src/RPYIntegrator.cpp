@@ -8,6 +8,7 @@
 #include "openmm/internal/ContextImpl.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <istream>
 #include <limits>
@@ -172,18 +173,39 @@ void RPYIntegrator::step(int steps) {
         takeStep(std::numeric_limits<double>::infinity());
 }
 
-void RPYIntegrator::stepTo(double time) {
-    checkInitialized();
+void RPYIntegrator::checkTarget(double time) const {
     const double now = context->getTime();
     if (!std::isfinite(time))
         throw OpenMMException("stepTo: time=" + formatNumber(time) + " is not a finite number of ps");
     // the landing rule (RPYMethods.h): a time within the slack counts as reached
-    const double slack = landingSlack(time);
-    if (time < now - slack)
+    if (time < now - landingSlack(time))
         throw OpenMMException("stepTo: time=" + formatNumber(time) + " ps is earlier than the Context's time " +
                               formatNumber(now) + " ps; overdamped steps only go forward");
+}
+
+void RPYIntegrator::stepTo(double time) {
+    checkInitialized();
+    checkTarget(time);
+    const double slack = landingSlack(time);
     while (context->getTime() < time - slack)
         takeStep(time);
+}
+
+bool RPYIntegrator::stepToWithin(double time, double maxSeconds) {
+    checkInitialized();
+    if (!(maxSeconds >= 0))
+        throw OpenMMException("stepToWithin: maxSeconds=" + formatNumber(maxSeconds) +
+                              ": must be >= 0 (seconds of wall-clock time; +infinity for no limit)");
+    checkTarget(time);
+    const double slack = landingSlack(time);
+    const auto start = std::chrono::steady_clock::now();
+    while (context->getTime() < time - slack) {
+        takeStep(time);  // the same call stepTo makes: the budget never changes a step
+        const std::chrono::duration<double> spent = std::chrono::steady_clock::now() - start;
+        if (spent.count() >= maxSeconds)
+            return !(context->getTime() < time - slack);
+    }
+    return true;
 }
 
 std::vector<double> RPYIntegrator::getGroupEnergies(const std::vector<int>& groups) {

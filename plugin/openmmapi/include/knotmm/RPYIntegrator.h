@@ -85,6 +85,17 @@ public:
      * the Context's by more than the slack, throws OpenMMException.
      */
     void stepTo(double time);
+    /**
+     * As stepTo(time), but give the caller control back between steps: after each accepted
+     * step, return once `maxSeconds` of wall-clock time have passed since the call (0: after
+     * one step; +infinity: as stepTo). Returns true when `time` is reached, false when the
+     * budget ran out first; the Context then holds a whole step boundary before `time`, and
+     * the next call goes on with exactly the steps one stepTo(time) call would have taken (the
+     * budget never changes a step, only where the calls end). A caller that must answer
+     * signals or check the state while a stretch runs (knotmm's plugin engine) loops on it.
+     * A `maxSeconds` that is negative or NaN throws OpenMMException, as stepTo's bad times.
+     */
+    bool stepToWithin(double time, double maxSeconds);
 
     /**
      * Potential energy of each force group in `groups` (each 0..31), in kJ/mol (= F0 d), at the
@@ -114,6 +125,7 @@ protected:
 
 private:
     void checkInitialized() const;
+    void checkTarget(double time) const;
     void takeStep(double targetTime);
     std::string method, noiseMethod;
     double lanczosTolerance;
