@@ -33,8 +33,10 @@ from typing import Any
 
 import tomli_w
 
+from knotmm import limits
 from knotmm.dynamics import registry
 from knotmm.errors import ConfigError
+from knotmm.limits import MAX_BEADS, MAX_LENGTH, as_float, shown
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -67,6 +69,10 @@ class Key:
         Inclusive bounds; ``exclusive_minimum`` makes the lower bound strict.
     choices : tuple of str, optional
         Allowed values of a string key.
+    allow_inf : bool, optional
+        Whether ``inf`` is valid (float keys).
+    why : str, optional
+        The reason for the range, told with a value outside it (``knotmm.limits``).
     """
 
     kind: str
@@ -77,6 +83,7 @@ class Key:
     exclusive_minimum: bool = False
     choices: tuple[str, ...] | None = None
     allow_inf: bool = False
+    why: str = ""
 
 
 def resolve_stepping(cfg) -> tuple[str, float]:
@@ -123,14 +130,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "path": Key("str", None, "file: PDB or DCD path (a DCD needs its PDB beside it)"),
         "frame": Key("int", 0, "file: frame index (negative counts from the end)"),
         "topology": Key("str", None, "file: topology PDB for a DCD path"),
-        "beads": Key("int", 90, "number of beads N", 4),
-        "minor_radius": Key(
-            "float", 0.6, "minor radius a of the template torus, in d", 0.0, None, True
-        ),
+        "beads": Key("int", 90, "number of beads N", 4, MAX_BEADS, why=limits.BEADS_WHY),
+        "minor_radius": Key("float", 0.6, "minor radius a of the template torus, in d", 0.0,
+                            MAX_LENGTH, True, why=limits.LENGTH_WHY),
         "major_radius": Key(
             "float", None,
             "major radius r0 of the template torus, in d; default: bonds exactly bond_length",
-            0.0, None, True,
+            0.0, MAX_LENGTH, True, why=limits.LENGTH_WHY,
         ),
         "mirror": Key("bool", False, "true: the mirror image (left-handed for T(2,3))"),
         "closed": Key(
@@ -139,18 +145,24 @@ SCHEMA: dict[str, dict[str, Key]] = {
         ),
         "arc_degrees": Key("float", 180.0, "arc: the angle the arc spans, in degrees", 0.0,
                            360.0, True),
-        "helix_radius": Key("float", 2.0, "helix: radius, in d", 0.0, None, True),
-        "helix_pitch": Key("float", 3.0, "helix: rise per turn along its axis (z), in d", 0.0),
-        "perturbation": Key("float", 0.0, "random displacement of each bead (std), in d", 0.0),
+        "helix_radius": Key("float", 2.0, "helix: radius, in d", 0.0, MAX_LENGTH, True,
+                            why=limits.LENGTH_WHY),
+        "helix_pitch": Key("float", 3.0, "helix: rise per turn along its axis (z), in d", 0.0,
+                           MAX_LENGTH, why=limits.LENGTH_WHY),
+        "perturbation": Key("float", 0.0, "random displacement of each bead (std), in d", 0.0,
+                            MAX_LENGTH, why=limits.LENGTH_WHY),
         "seed": Key("int", None, "seed of the template perturbation; default: run.seed", 0),
     },
     "model": {
-        "bond_length": Key("float", 0.6, "equilibrium bond length l0, in d", 0.0, None, True),
+        "bond_length": Key("float", 0.6, "equilibrium bond length l0, in d", 0.0, MAX_LENGTH,
+                           True, why=limits.LENGTH_WHY),
         "bond_stiffness": Key("float", 50.0, "bond stiffness B, in F0/d", 0.0, None, True),
         "bending_stiffness": Key("float", 5.0, "bending stiffness A, in F0 d", 0.0),
-        "lj_sigma": Key("float", 0.5, "steric length sigma, in d", 0.0, None, True),
+        "lj_sigma": Key("float", 0.5, "steric length sigma, in d", 0.0, MAX_LENGTH, True,
+                        why=limits.LENGTH_WHY),
         "lj_epsilon": Key("float", 0.25, "steric energy eps, in F0 d", 0.0),
-        "gravity": Key("float", 1.0, "force on each bead along -z, in F0", 0.0),
+        "gravity": Key("float", 1.0, "force on each bead along -z, in F0", 0.0,
+                       limits.MAX_GRAVITY, why=limits.GRAVITY_WHY),
         "segment_repulsion": Key(
             "bool", False,
             "true: steric sites at bond midpoints forbid strand passage (not the study's model)",
@@ -189,8 +201,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "float", 3.0, "a bond longer than this stops the run, in d", 0.0, None, True,
         ),
         "peclet": Key(
-            "float", math.inf, "Peclet number d F0/(kT); inf: deterministic", 0.0, None, True,
-            allow_inf=True,
+            "float", math.inf, "Peclet number d F0/(kT); inf: deterministic", limits.MIN_PECLET,
+            allow_inf=True, why=limits.PECLET_WHY,
         ),
         "platform": Key("str", "auto", "OpenMM platform: auto, Reference, CPU, CUDA, OpenCL",
                         choices=("auto", "Reference", "CPU", "CUDA", "OpenCL", "HIP")),
@@ -203,16 +215,19 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "platforms)",
             choices=("auto", registry.PLUGIN_ENGINE, registry.PYTHON_ENGINE),
         ),
-        "threads": Key("int", 1, "CPU platform threads", 1),
+        "threads": Key("int", 1, "CPU platform threads", 1, limits.MAX_THREADS,
+                       why=limits.THREADS_WHY),
         "mobility_threads": Key(
             "int", 1,
             "threads of the RPY pair loop (same trajectory); 2 threads on 2 cores: 1.3x at "
             "N = 120, 1.6x at 240, 1.7x at 480; keep 1 when sweep workers fill the cores", 1,
+            limits.MAX_THREADS, why=limits.THREADS_WHY,
         ),
         "seed": Key("int", 1, "random seed (noise, perturbations)", 0),
         "replicas": Key(
             "int", 1, "independent copies of the run, in one process, written to "
             "DIR/replica_0 ... (each seeded from run.seed; knotmm.replicas)", 1,
+            limits.MAX_REPLICAS, why=limits.REPLICAS_WHY,
         ),
         "noise": Key(
             "str", "auto",
@@ -284,17 +299,10 @@ def _check_chains(entries: Any) -> list[dict[str, Any]]:
                 values[name] = _check_value(f"chains[{c}].{name}", key, entry[name])
             else:
                 values[name] = copy.deepcopy(key.default)
-        if len(values["offset"]) != 3:
-            raise ConfigError(
-                f"chains[{c}].offset = {values['offset']!r}: expected [x, y, z], 3 numbers in d"
-            )
-        rot = values["rotation"]
-        if rot is not None and (len(rot) != 4 or not any(rot[:3])):
-            raise ConfigError(
-                f"chains[{c}].rotation = {rot!r}: expected [x, y, z, degrees] with a non-zero "
-                "axis (x, y, z), e.g. [0, 0, 1, 90]"
-            )
+        limits.check_placement(values["offset"], values["rotation"], f"chains[{c}].")
+        limits.check_shape_sizes(values, f"chains[{c}].")
         out.append(values)
+    limits.check_total_beads(out)
     return out
 
 
@@ -315,19 +323,20 @@ def _check_value(dotted: str, key: Key, value: Any) -> Any:
     }[key.kind]
     if key.kind == "int":
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
+            raise ConfigError(f"{dotted} = {shown(value)}: expected {expected}")
     elif key.kind == "float":
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
-        value = float(value)
-        if math.isnan(value) or (math.isinf(value) and not (key.allow_inf and value > 0)):
-            raise ConfigError(f"{dotted} = {value!r}: expected a finite number")
+            raise ConfigError(f"{dotted} = {shown(value)}: expected {expected}")
+        number = as_float(value)  # NaN for an integer past the float range
+        if math.isnan(number) or (math.isinf(number) and not (key.allow_inf and number > 0)):
+            raise ConfigError(f"{dotted} = {shown(value)}: expected a finite number")
+        value = number
     elif key.kind == "bool":
         if not isinstance(value, bool):
-            raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
+            raise ConfigError(f"{dotted} = {shown(value)}: expected {expected}")
     elif key.kind == "str":
         if not isinstance(value, str):
-            raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
+            raise ConfigError(f"{dotted} = {shown(value)}: expected {expected}")
         if key.choices is not None and value not in key.choices:
             # accept case-insensitive platform names etc.
             lowered = {c.lower(): c for c in key.choices}
@@ -335,30 +344,31 @@ def _check_value(dotted: str, key: Key, value: Any) -> Any:
                 value = lowered[value.lower()]
             else:
                 raise ConfigError(
-                    f"{dotted} = {value!r}: expected one of {', '.join(key.choices)}"
+                    f"{dotted} = {shown(value)}: expected one of {', '.join(key.choices)}"
                     + _suggest(value, key.choices)
                 )
     elif key.kind == "int_list":
         if not isinstance(value, (list, tuple)) or not all(
             isinstance(v, int) and not isinstance(v, bool) for v in value
         ):
-            raise ConfigError(f"{dotted} = {value!r}: expected {expected}")
+            raise ConfigError(f"{dotted} = {shown(value)}: expected {expected}")
         value = [int(v) for v in value]
     elif key.kind == "float_list":
         if not isinstance(value, (list, tuple)) or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(as_float(v))
             for v in value
         ):
-            raise ConfigError(f"{dotted} = {value!r}: expected {expected} (finite)")
+            raise ConfigError(f"{dotted} = {shown(value)}: expected {expected} (finite)")
         value = [float(v) for v in value]
     if key.kind in ("int", "float"):
+        why = f" ({key.why})" if key.why else ""
         if key.minimum is not None:
             if key.exclusive_minimum and not value > key.minimum:
-                raise ConfigError(f"{dotted} = {value!r}: must be > {key.minimum:g}")
+                raise ConfigError(f"{dotted} = {shown(value)}: must be > {key.minimum:g}{why}")
             if not key.exclusive_minimum and not value >= key.minimum:
-                raise ConfigError(f"{dotted} = {value!r}: must be >= {key.minimum:g}")
+                raise ConfigError(f"{dotted} = {shown(value)}: must be >= {key.minimum:g}{why}")
         if key.maximum is not None and not value <= key.maximum:
-            raise ConfigError(f"{dotted} = {value!r}: must be <= {key.maximum:g}")
+            raise ConfigError(f"{dotted} = {shown(value)}: must be <= {key.maximum:g}{why}")
     return value
 
 
@@ -432,6 +442,8 @@ class RunConfig(Mapping):
                     values[table][name] = _check_value(f"{table}.{name}", key, given[name])
                 else:
                     values[table][name] = copy.deepcopy(key.default)
+        if chains is None:
+            limits.check_shape_sizes(values["knot"], "knot.")
         cfg = cls(values, chains)
         cfg._check_consistency()
         return cfg
@@ -450,6 +462,7 @@ class RunConfig(Mapping):
                 f"output.frame_interval = {out['frame_interval']!r} is longer than "
                 f"run.duration = {run['duration']!r}: lower the interval or run longer"
             )
+        limits.check_frames(run["duration"], out["frame_interval"])
         if run["max_bond_length"] <= self._values["model"]["bond_length"]:
             raise ConfigError(
                 f"run.max_bond_length = {run['max_bond_length']!r} must exceed "

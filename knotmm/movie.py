@@ -36,6 +36,7 @@ import numpy as np
 from knotmm.errors import ConfigError, KnotmmError
 from knotmm.io.atomic import replacing
 from knotmm.io.rundir import check_output_file, writing_output
+from knotmm.limits import MAX_DPI
 from knotmm.progress import Progress
 
 __all__ = ["MovieResult", "make_movie", "render_frames", "mp4_available", "MAX_AUTO_FRAMES"]
@@ -302,7 +303,8 @@ def make_movie(
     t_from, t_to : float, optional
         Time window of the trajectory to show, in tau_d.
     dpi : float
-        Resolution (the frame is 12 x 4.6 inches: 960 x 368 pixels at 80 dpi).
+        Resolution (the frame is 12 x 4.6 inches: 960 x 368 pixels at 80 dpi), at most
+        :data:`knotmm.limits.MAX_DPI` (600).
     progress : bool, optional
         True: a bar of the frames drawn; False: nothing; None (default): a bar when stderr
         is a terminal, else a line each time another 10 % is drawn
@@ -332,8 +334,12 @@ def make_movie(
         raise ConfigError(f"--stride {stride!r}: expected an integer >= 1")
     if int(trail) != trail or trail < 0:
         raise ConfigError(f"--trail {trail!r}: expected an integer >= 0")
-    if not (dpi > 0):
-        raise ConfigError(f"--dpi {dpi!r}: expected a positive number")
+    if not (isinstance(dpi, (int, float)) and 0 < dpi <= MAX_DPI):  # also NaN
+        raise ConfigError(
+            f"--dpi {dpi!r}: expected a number in (0, {MAX_DPI:g}]: the 12 x 4.6 inch frame is "
+            f"then at most {12 * MAX_DPI:.0f} x {4.6 * MAX_DPI:.0f} pixels, within H.264's "
+            "largest frame (8192 x 4320), and one frame takes at most about 80 MB to draw"
+        )
     out = Path(out) if out is not None else None
     fmt = _format_for(out)
     data = load_run(run_dir)

@@ -17,7 +17,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "knotmm"
 #: Layers, lowest first. A module may import from its own layer or any lower one, never from a
 #: higher one. Keep in step with the table in docs/architecture.md.
 LAYERS = [
-    {"errors", "units", "progress", "plotstyle"},
+    {"errors", "units", "limits", "progress", "plotstyle"},
     {"dynamics"},
     {"config"},
     {"model"},

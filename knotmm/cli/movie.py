@@ -52,7 +52,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "--dpi",
         type=float,
         default=80.0,
-        help="resolution; the frame is 12 x 4.6 inches (default 80)",
+        help="resolution, up to 600; the frame is 12 x 4.6 inches (default 80)",
     )
     bar = p.add_mutually_exclusive_group()
     bar.add_argument("--progress", dest="progress", action="store_true", default=None,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from knotmm.config import RunConfig, load_run_file, parse_override
+from knotmm.errors import ConfigError
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -23,7 +24,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="run directory (default: output.directory)")
     p.add_argument("--duration", type=float, metavar="T",
                    help="simulated time, in tau_d (with --resume: extend the run to T)")
-    p.add_argument("--beads", type=int, metavar="N", help="number of beads")
+    p.add_argument("--beads", type=int, metavar="N",
+                   help="number of beads (knot.beads; not for a [[chains]] run file)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing run directory")
     p.add_argument("--resume", metavar="DIR",
                    help="continue a stopped or killed run from its last checkpoint (a "
@@ -51,6 +53,12 @@ def config_from_args(args) -> RunConfig:
     if args.duration is not None:
         changes["run.duration"] = args.duration
     if args.beads is not None:
+        if cfg.chains is not None:  # which chain's count? each [[chains]] entry has its own
+            raise ConfigError(
+                f"--beads {args.beads}: {args.run_file} gives [[chains]] "
+                f"({len(cfg.chains)} chains), each with its own bead count; set beads = N in "
+                "each [[chains]] entry of the run file and leave --beads out"
+            )
         changes["knot.beads"] = args.beads
     if args.out is not None:
         changes["output.directory"] = args.out
@@ -132,7 +140,6 @@ def _report(result) -> None:
 def execute(args) -> int:
     """Run and print the knot-type changes and the one-line summary."""
     from knotmm.engine.interrupt import stop_between_steps
-    from knotmm.errors import ConfigError
     from knotmm.replicas import resume_replicas as resume
     from knotmm.replicas import run_replicas as run
 

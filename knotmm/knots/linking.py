@@ -28,6 +28,8 @@ __all__ = ["gauss_linking_integral", "linking_number", "linking_numbers"]
 #: A Gauss integral farther than this from an integer means the chains touch (or are not
 #: closed polygons): no linking number.
 INTEGER_TOLERANCE = 0.05
+#: Segment pairs of the Gauss integral evaluated at once (about 60 MB of temporaries).
+_BLOCK_PAIRS = 100_000
 
 
 def gauss_linking_integral(a, b) -> float:
@@ -44,9 +46,14 @@ def gauss_linking_integral(a, b) -> float:
     if a.ndim != 2 or b.ndim != 2:
         raise ValueError("a and b must be single frames, shape (n_beads, 3)")
     a2, b2 = np.roll(a, -1, axis=0), np.roll(b, -1, axis=0)
-    i, j = np.meshgrid(np.arange(len(a)), np.arange(len(b)), indexing="ij")
-    i, j = i.ravel(), j.ravel()
-    return float(segment_pair_gauss(a[i], a2[i], b[j], b2[j]).sum())
+    rows = max(1, _BLOCK_PAIRS // len(b))  # a block of rows at a time: memory bounded for
+    total = 0.0                            # any length (all pairs of two 50000-bead rings at
+    for start in range(0, len(a), rows):   # once would take over 1 TB)
+        i, j = np.meshgrid(np.arange(start, min(start + rows, len(a))), np.arange(len(b)),
+                           indexing="ij")
+        i, j = i.ravel(), j.ravel()
+        total += float(segment_pair_gauss(a[i], a2[i], b[j], b2[j]).sum())
+    return total
 
 
 def linking_number(a, b) -> int:

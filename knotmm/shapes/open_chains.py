@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from knotmm.errors import TemplateError
+from knotmm.limits import LENGTH_WHY, MAX_LENGTH
 
 __all__ = ["OPEN_KINDS", "arc", "closest_nonbonded_open", "helix", "straight"]
 
@@ -53,7 +54,8 @@ def arc(beads: int, bond_length: float, degrees: float) -> np.ndarray:
     Raises
     ------
     TemplateError
-        For an arc whose ends would meet (``degrees`` >= 360).
+        For an arc whose ends would meet (``degrees`` >= 360), or one so flat that its radius
+        exceeds :data:`knotmm.limits.MAX_LENGTH` (1e5 d).
     """
     theta = math.radians(degrees)
     if not 0.0 < theta < 2.0 * math.pi:
@@ -62,6 +64,13 @@ def arc(beads: int, bond_length: float, degrees: float) -> np.ndarray:
         )
     step = theta / (beads - 1)
     radius = bond_length / (2.0 * math.sin(step / 2.0))
+    if not radius <= MAX_LENGTH:  # 1e-300 degrees: a radius of 1e300 d, not a shape
+        flattest = math.degrees(2.0 * math.asin(min(1.0, bond_length / (2.0 * MAX_LENGTH))))
+        raise TemplateError(
+            f"knot.arc_degrees={degrees:g} with knot.beads={beads} bends the arc on a radius "
+            f"of {radius:.3g} d, more than {MAX_LENGTH:g} d ({LENGTH_WHY}); use "
+            f"knot.arc_degrees >= {1.001 * flattest * (beads - 1):.3g}, or kind = 'straight'"
+        )
     phi = step * np.arange(beads) - theta / 2.0
     x = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.zeros(beads)], axis=1)
     return _centred(x)
@@ -82,8 +91,13 @@ def helix(beads: int, bond_length: float, radius: float, pitch: float) -> np.nda
     ------
     TemplateError
         When no turn angle up to half a turn per bond gives the bond length (a pitch of
-        zero and a diameter below the bond length).
+        zero and a diameter below the bond length), or for a radius or pitch past
+        :data:`knotmm.limits.MAX_LENGTH` (1e5 d; 1e300 would overflow the chord below).
     """
+    for name, value in (("helix_radius", radius), ("helix_pitch", pitch)):
+        if not abs(value) <= MAX_LENGTH:
+            raise TemplateError(f"knot.{name}={value:g}: must be within {MAX_LENGTH:g} d "
+                                f"({LENGTH_WHY})")
     rise = pitch / (2.0 * math.pi)
 
     def chord2(d):

@@ -1,0 +1,53 @@
+"""knotmm.limits: the largest sizes a run may ask for, held in the run-file schema before
+anything is allocated (issue 30, BUG-16 and BUG-18)."""
+
+from __future__ import annotations
+
+import pytest
+
+from knotmm import limits
+from knotmm.config import RunConfig
+from knotmm.errors import ConfigError
+
+
+@pytest.mark.parametrize(("data", "says"), [
+    ({"knot": {"kind": "braid", "word": [2**63 - 1, 1], "beads": 60}},
+     r"knot.word = \[9223372036854775807, 1\]: generator 9223372036854775807 asks for"),
+    ({"knot": {"kind": "braid", "word": [1, -60], "beads": 60}}, "use generators below 60"),
+    ({"knot": {"p": 10**30, "q": 3}}, "knot.p = 1000000000000000000000000000000"),
+    ({"chains": [{"kind": "braid", "word": [1, 99], "beads": 40}]}, r"chains\[0\]\.word"),
+    ({"run": {"replicas": 10**9}}, "run.replicas = 1000000000: must be <= 10000"),
+    ({"knot": {"beads": 10**5}}, "knot.beads = 100000: must be <= 99999"),
+    ({"chains": [{"beads": 50_000}, {"beads": 50_000, "offset": [9.0, 0.0, 0.0]}]},
+     "chains: 100000 beads in all"),
+    ({"run": {"threads": 129}}, "run.threads = 129: must be <= 128"),
+    ({"run": {"duration": 3e9}, "output": {"frame_interval": 1.0}}, "2147483647 frames"),
+    ({"run": {"duration": 10**400}}, r"run.duration = 1000.*\(401 characters\): expected a "
+                                     "finite number"),
+    ({"chains": [{"beads": 30, "offset": [10**400, 0, 0]}]}, r"chains\[0\]\.offset"),
+    ({"chains": [{"beads": 30, "offset": [1.0e5 + 1, 0, 0]}]}, r"within \+-100000"),
+], ids=["braid_2_63", "braid_equal_beads", "torus_p", "chains_braid", "replicas", "beads",
+        "chains_total", "threads", "frames", "duration_int", "offset_int", "offset"])
+def test_sizes_past_the_limits_are_refused_in_one_line(data, says):
+    with pytest.raises(ConfigError, match=says) as info:
+        RunConfig.from_dict(data)
+    assert "\n" not in str(info.value) and len(str(info.value)) < 500
+
+
+def test_sizes_at_the_limits_are_accepted():
+    cfg = RunConfig.from_dict({
+        "knot": {"kind": "braid", "word": [1, -59], "beads": 60},
+        "run": {"replicas": limits.MAX_REPLICAS, "threads": limits.MAX_THREADS,
+                "peclet": limits.MIN_PECLET},
+        "model": {"gravity": limits.MAX_GRAVITY},
+    })
+    assert cfg["run.replicas"] == 10_000
+    assert RunConfig.from_dict({"knot": {"beads": limits.MAX_BEADS}})["knot.beads"] == 99_999
+    chains = RunConfig.from_dict({"chains": [{"beads": 30, "offset": [-1e5, 0, 1e5]}]}).chains
+    assert chains[0]["offset"] == [-1e5, 0.0, 1e5]
+
+
+def test_shown_cuts_long_values():
+    assert limits.shown(12) == "12"
+    text = limits.shown(10**400)
+    assert text.startswith("1000") and "(401 characters)" in text and len(text) < 70
