@@ -28,6 +28,7 @@ underflow or non-finite positions become the Python engine's messages too.
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -39,6 +40,8 @@ from knotmm.engine.interrupt import raise_if_requested
 from knotmm.engine.openmm_state import state_array
 from knotmm.engine.schedule import landing_slack
 from knotmm.errors import SimulationFault
+
+log = logging.getLogger(__name__)
 
 __all__ = ["PluginEngine"]
 
@@ -106,8 +109,12 @@ class PluginEngine(Engine):
                                        threads=self.rpy.getNumThreads())
         context = openmm.Context(sim.system, probe, sim.context.getPlatform())
         context.setPositions(sim.context.getState(getPositions=True).getPositions())
-        probe.step(1)
-        return float(probe.getSpectralRadius())
+        try:
+            probe.step(1)
+        except openmm.OpenMMException as exc:  # the run itself reports a start it cannot step
+            log.info("stiffness probe: its step failed (%s)", " ".join(str(exc).split()))
+        rho = float(probe.getSpectralRadius())  # made at the step's start, before any try
+        return rho if math.isfinite(rho) else math.inf
 
     # -- reading the Context ------------------------------------------------------------
     def _counts(self) -> tuple[int, int, int]:

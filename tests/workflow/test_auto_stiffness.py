@@ -49,3 +49,27 @@ def test_run_records_the_integrator_auto_picked(tmp_path, bending, expected):
                                "run": {"duration": 0.5, "topology_check_interval": 0.0}})
     run(cfg, tmp_path / "r", progress=False)
     assert load_run_file(tmp_path / "r" / "run.toml")["run.integrator"] == expected
+
+
+def test_plugin_stiffness_of_a_start_it_cannot_step_is_an_estimate_not_a_traceback():
+    """Issue 30: the plugin's rkc2 probe step fails (step-size underflow) at gravity 1e100;
+    the estimate, made at the step's start, is still returned, and the run then reports its
+    own fault. At such forces the velocity Jacobian is that of M(x) g, linear in g: the
+    estimate scales as the gravity does (checked against gravity 1e6, which steps)."""
+    from reference_model import flat_ring
+
+    import knotmm.plugin
+    from knotmm.dynamics.deterministic import RK23
+    from knotmm.engine.simulation import Simulation
+    from knotmm.model.parameters import ChainModel
+
+    if not knotmm.plugin.available():
+        pytest.skip(f"plugin not built: {knotmm.plugin.load_error()}")
+    x = flat_ring(8, wave=0.05)
+
+    def stiffness(gravity):
+        return Simulation(x, ChainModel(gravity=gravity), RK23(0.01), platform="Reference",
+                          engine="plugin").stiffness()
+
+    ratio = stiffness(1e100) / stiffness(1e6)
+    assert ratio == pytest.approx(1e94, rel=0.05)
