@@ -463,6 +463,9 @@ class RunConfig(Mapping):
                 f"run.duration = {run['duration']!r}: lower the interval or run longer"
             )
         limits.check_frames(run["duration"], out["frame_interval"])
+        name, step = registry.resolve(run["integrator"], run["peclet"], run["timestep"])
+        limits.check_steps(run["duration"], *((run["max_timestep"], "run.max_timestep")
+                           if registry.REGISTRY[name].adaptive else (step, "run.timestep")))
         if run["max_bond_length"] <= self._values["model"]["bond_length"]:
             raise ConfigError(
                 f"run.max_bond_length = {run['max_bond_length']!r} must exceed "

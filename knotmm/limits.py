@@ -47,6 +47,7 @@ __all__ = [
     "THREADS_WHY",
     "as_float",
     "check_frames",
+    "check_steps",
     "check_placement",
     "check_shape_sizes",
     "check_total_beads",
@@ -75,6 +76,8 @@ GRAVITY_WHY = ("a bead falls gravity d per tau_d: past 1e5 its chain leaves the 
 MIN_PECLET = 2.0 / MAX_LENGTH**2
 PECLET_WHY = ("kT = 1/Pe: a bead diffuses sqrt(2/Pe) d per tau_d, below that past the 1e5 d "
               "that the float32 trajectory resolves")
+#: Most steps of one run: OpenMM and the checkpoints count them in a signed 64-bit integer.
+MAX_STEPS = 2**63 - 1
 #: Most frames of one trajectory (the DCD header's 32-bit count).
 MAX_FRAMES = 2**31 - 1
 #: Largest movie resolution, in dots per inch of the 12 x 4.6 inch frame.
@@ -167,6 +170,20 @@ def check_shape_sizes(knot: Mapping[str, Any], where: str) -> None:
             f"{where}word = {shown(word)}: generator {shown(top)} asks for {shown(top + 1)} "
             f"strands, each going once around with beads of its own, more than {where}beads "
             f"= {beads}; use generators below {beads}"
+        )
+
+
+def check_steps(duration: float, largest_step: float, key: str) -> None:
+    """Refuse a run that needs more than :data:`MAX_STEPS` steps to reach ``duration``.
+
+    ``largest_step`` (tau_d) is the largest step the run may take: the step of a fixed-step
+    integrator, ``run.max_timestep`` of an adaptive one; ``key`` names it.
+    """
+    if duration / largest_step > MAX_STEPS:
+        raise ConfigError(
+            f"{key} = {largest_step!r} needs more than 2^63 steps to reach run.duration = "
+            f"{duration!r} tau_d, more than OpenMM's 64-bit step count can hold (the run could "
+            f"never finish); allow larger steps or a shorter run"
         )
 
 

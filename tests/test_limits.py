@@ -51,3 +51,22 @@ def test_shown_cuts_long_values():
     assert limits.shown(12) == "12"
     text = limits.shown(10**400)
     assert text.startswith("1000") and "(401 characters)" in text and len(text) < 70
+
+
+@pytest.mark.parametrize(("run", "key"), [
+    ({"min_timestep": 1e-320, "max_timestep": 1e-300}, "run.max_timestep"),
+    ({"integrator": "heun", "timestep": 1e-300}, "run.timestep"),
+])
+def test_a_run_that_needs_more_than_2_63_steps_is_refused(run, key):
+    """A run whose largest step cannot reach run.duration within OpenMM's 64-bit step count
+    never finishes (the audit's max_timestep = 1e-300 ran for 11 minutes): refused, naming the
+    key; 2 tau_d at 1e-300 is 2e300 steps, far past 2^63 = 9.2e18."""
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        RunConfig.from_dict({"knot": {"beads": 30}, "run": {"duration": 2.0, **run}})
+
+
+def test_a_tiny_first_step_of_an_adaptive_method_is_not_refused():
+    """rk23's run.timestep is only its first step (the audit's timestep = 1e-320 held)."""
+    cfg = RunConfig.from_dict({"knot": {"beads": 30},
+                               "run": {"duration": 2.0, "timestep": 1e-320}})
+    assert cfg["run.timestep"] == 1e-320

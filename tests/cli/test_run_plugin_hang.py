@@ -4,7 +4,8 @@ BUG-13).
 The audit's reproductions: a chain that blows up inside the first frame interval (Pe = 1e-6)
 kept the plugin in one C++ ``stepTo`` for 8 minutes, deaf to SIGTERM and to two SIGINTs,
 before it reported the bond fault the Python engine reports in a second; a run whose step
-(``run.max_timestep = 1e-300``) cannot reach the next frame ignored SIGTERM for 11 minutes.
+(``run.max_timestep = 1e-300``; now refused as needing over 2^63 steps, so 1e-14 here)
+cannot reach the next frame ignored SIGTERM for 11 minutes.
 Each case runs ``python -m knotmm.cli run`` in a child process with a deadline; a child still
 alive then is killed by its pid, and the test fails.
 """
@@ -88,10 +89,11 @@ def test_a_chain_that_blows_up_inside_a_stretch_faults_in_seconds(tmp_path):
 
 @pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])
 def test_a_step_far_below_the_stretch_answers_a_signal_within_two_seconds(tmp_path, sig):
-    """run.max_timestep = 1e-300: the next frame is out of reach; the signal ends the run."""
+    """run.max_timestep = 1e-14: the next frame (2e12 steps away) is out of reach; the signal
+    ends the run."""
     directory = tmp_path / "run"
     proc = _start(directory, "--set", "run.min_timestep=1e-320",
-                  "--set", "run.max_timestep=1e-300")
+                  "--set", "run.max_timestep=1e-14")
     try:
         _wait_running(directory, proc)
         time.sleep(1.0)  # well inside the first stretch
