@@ -158,8 +158,9 @@ class Simulation:
         pos = np.array(positions, dtype=np.float64)
         self.mobility_threads = int(mobility_threads)
         self.model = ChainModel() if model is None else model
-        self.system = chain_system(pos, self.model, layout)
         self.layout = ChainLayout.ring(pos.shape[0]) if layout is None else layout
+        self.system = chain_system(pos, self.model, self.layout)
+        self._n_particles = self.system.getNumParticles()  # the beads, then any sites
         self.topology = bead_topology(self.layout)
         self.integrator = RK23(0.01) if integrator is None else integrator
         plat, props = select_platform(platform, pos.shape[0], threads, engine)
@@ -331,13 +332,10 @@ class Simulation:
     # -- physics ------------------------------------------------------------------------
     def forces(self, positions: np.ndarray) -> np.ndarray:
         """Total force on every bead, shape (n_beads, 3), in F0 (from the OpenMM Context)."""
-        shifted = positions - positions.mean(axis=0)
-        if self.model.segment_repulsion:
-            shifted = site_positions(shifted, self.model, self.layout)
-        self.context.setPositions(shifted)
+        self._put_positions(positions - positions.mean(axis=0))
         self._context_current = False
         state = self.context.getState(getForces=True)
-        forces = state_array(state, "forces", shifted.shape[0])
+        forces = state_array(state, "forces", self._n_particles)
         # forces on midpoint sites are already distributed onto their beads by OpenMM
         return forces[: self.n_beads] if self.model.segment_repulsion else forces
 
@@ -380,7 +378,7 @@ class Simulation:
         (shape (n_beads, 3), in d; virtual sites placed from them); the Context then no
         longer holds the run's positions (the next step or report puts them back).
         """
-        self.context.setPositions(site_positions(shifted, self.model, self.layout))
+        self._put_positions(shifted)
         self._context_current = False
         out = {}
         for name, group in FORCE_GROUPS.items():
@@ -440,9 +438,16 @@ class Simulation:
                     f"{integ.timestep:g} tau_d does not; or lower run.timestep")
         return "lower run.timestep, or use an adaptive run.integrator (rk23, rkc2)"
 
+    def _put_positions(self, beads: np.ndarray) -> None:
+        """Set the Context's positions to ``beads`` (shape (n_beads, 3), in d) and any
+        bond-midpoint sites placed from them by the layout's bonds
+        (:func:`knotmm.model.system.site_positions`, the System's rule): the one place the
+        Simulation hands positions to the Context."""
+        self.context.setPositions(site_positions(beads, self.model, self.layout))
+
     def sync_context(self) -> None:
         """Put the current positions, step count and time into the Context (for reporters)."""
-        self.context.setPositions(site_positions(self.positions, self.model))
+        self._put_positions(self.positions)
         self.context.setTime(self.time)
         self.context.setStepCount(self.currentStep)
         self._context_current = True

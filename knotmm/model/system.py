@@ -20,7 +20,11 @@ from knotmm.model.forces import FORCE_GROUPS, FORCE_MAKERS
 from knotmm.model.layout import ChainLayout
 from knotmm.model.parameters import ChainModel
 
-__all__ = ["FORCE_GROUPS", "ChainModel", "chain_system", "site_positions"]
+__all__ = ["FORCE_GROUPS", "SITE_WEIGHTS", "ChainModel", "chain_system", "site_positions"]
+
+#: Weights of a bond's two beads in its midpoint site (``model.segment_repulsion``): the
+#: System's ``TwoParticleAverageSite`` and :func:`site_positions` both take them from here.
+SITE_WEIGHTS = (0.5, 0.5)
 
 
 def _check_positions(positions, layout: ChainLayout | None) -> np.ndarray:
@@ -59,7 +63,8 @@ def chain_system(
         Unit-mass particles and the four named forces, each in its group of
         :data:`FORCE_GROUPS`. With ``model.segment_repulsion`` the System has one more
         particle per bond, the bond midpoints (massless virtual sites, in the order of
-        :meth:`ChainLayout.bonds`), after the beads; see :func:`site_positions`.
+        :meth:`ChainLayout.bonds`), after the beads; :func:`site_positions` places them
+        outside OpenMM by the same rule.
     """
     pos = _check_positions(positions, layout)
     model = ChainModel() if model is None else model
@@ -70,7 +75,8 @@ def chain_system(
     if model.segment_repulsion:
         for i, j in layout.bonds():
             site = system.addParticle(0.0)
-            system.setVirtualSite(site, openmm.TwoParticleAverageSite(int(i), int(j), 0.5, 0.5))
+            system.setVirtualSite(site, openmm.TwoParticleAverageSite(int(i), int(j),
+                                                                      *SITE_WEIGHTS))
     for name, group in FORCE_GROUPS.items():
         force = FORCE_MAKERS[name](layout, model)
         force.setForceGroup(group)
@@ -78,24 +84,45 @@ def chain_system(
     return system
 
 
-def site_positions(
-    positions: np.ndarray, model: ChainModel, layout: ChainLayout | None = None
-) -> np.ndarray:
+def site_positions(positions: np.ndarray, model: ChainModel, layout: ChainLayout) -> np.ndarray:
     """Positions of every particle of the System: the beads, then any bond midpoints.
+
+    The one rule that places the sites outside OpenMM: site ``k`` is the weighted average
+    (:data:`SITE_WEIGHTS`) of the two beads of bond ``k`` of ``layout.bonds()``, as the
+    System's ``TwoParticleAverageSite`` k (:func:`chain_system`) is, and in the same
+    floating-point operations as OpenMM's Reference and CPU platforms place it (bit for bit).
 
     Parameters
     ----------
     positions : ndarray, shape (n_beads, 3), in d
-    layout : ChainLayout, optional
-        The chains; default: one ring.
+    model : ChainModel
+        Sites only with ``model.segment_repulsion``.
+    layout : ChainLayout
+        The chains whose bonds carry the sites (the System's layout; there is no default:
+        a ring's sites are not those of open or several chains).
 
     Returns
     -------
-    ndarray, shape (n_beads, 3) or (n_beads + n_bonds, 3)
+    ndarray, shape (n_beads, 3) or (n_beads + n_bonds, 3), in d
+        ``positions`` itself without sites.
+
+    Raises
+    ------
+    ConfigError
+        ``positions`` do not hold ``layout``'s beads.
+    TypeError
+        ``layout`` is not a :class:`ChainLayout`.
     """
     if not model.segment_repulsion:
         return positions
-    if layout is None:
-        return np.concatenate([positions, 0.5 * (positions + np.roll(positions, -1, axis=0))])
+    if not isinstance(layout, ChainLayout):
+        raise TypeError(f"site_positions: layout must be a ChainLayout, got {layout!r}")
+    pos = np.asarray(positions, dtype=np.float64)
+    if pos.ndim != 2 or pos.shape != (layout.n_beads, 3):
+        raise ConfigError(
+            f"positions: shape {pos.shape}, but the chains ({layout.describe()}) hold "
+            f"{layout.n_beads} beads"
+        )
     bonds = layout.bonds()
-    return np.concatenate([positions, 0.5 * (positions[bonds[:, 0]] + positions[bonds[:, 1]])])
+    w0, w1 = SITE_WEIGHTS
+    return np.concatenate([pos, pos[bonds[:, 0]] * w0 + pos[bonds[:, 1]] * w1])

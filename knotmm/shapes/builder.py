@@ -530,8 +530,8 @@ def build_system(cfg) -> tuple[openmm.app.Topology, openmm.System, np.ndarray]:
         The four named forces (``bond``, ``bend``, ``steric``, ``gravity``).
     positions : ndarray, shape (n_particles, 3), float64, in nm (= d)
         One row per particle of the System: the ``n_beads`` beads, followed, with
-        ``model.segment_repulsion``, by the ``n_beads`` bond midpoints (virtual sites, which
-        the Topology does not list).
+        ``model.segment_repulsion``, by one midpoint per bond of the layout (virtual sites,
+        which the Topology does not list).
 
     Raises
     ------

@@ -14,6 +14,7 @@ from knotmm.dynamics.registry import make
 from knotmm.engine.simulation import Simulation
 from knotmm.knots.identify import identify_knot, topoly_available
 from knotmm.knots.writhe import writhe
+from knotmm.model.layout import ChainLayout
 from knotmm.model.system import ChainModel, chain_system, site_positions
 from knotmm.shapes import torus_knot
 
@@ -61,7 +62,7 @@ def test_midpoint_sites_follow_their_bonds_and_carry_no_force():
     for k in range(40):
         assert system.isVirtualSite(40 + k)
         assert system.getParticleMass(40 + k).value_in_unit(openmm.unit.dalton) == 0.0
-    full = site_positions(x, model)
+    full = site_positions(x, model, ChainLayout.ring(40))
     np.testing.assert_allclose(full[40:], 0.5 * (x + np.roll(x, -1, axis=0)))
 
 

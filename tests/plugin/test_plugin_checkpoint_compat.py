@@ -24,6 +24,7 @@ import openmm.version
 import pytest
 
 import knotmm.plugin as kp
+from knotmm.model.layout import ChainLayout
 from knotmm.model.system import ChainModel, chain_system, site_positions
 from knotmm.shapes.geometry import torus_knot
 
@@ -53,7 +54,7 @@ def test_old_checkpoint_resumes_the_same_run(case):
     model = ChainModel(segment_repulsion=segments)
     integ = kp.RPYIntegrator(0.002 if kT > 0 else 0.01, method, 1e-4, kT=kT, seed=7, noise=noise)
     ctx = openmm.Context(chain_system(x, model), integ, openmm.Platform.getPlatformByName(platform))
-    ctx.setPositions(site_positions(x, model))
+    ctx.setPositions(site_positions(x, model, ChainLayout.ring(30)))
     ctx.loadCheckpoint(get("checkpoint").tobytes())
     assert ctx.getState().getTime().value_in_unit(openmm.unit.picosecond) == pytest.approx(0.5)
     integ.stepTo(1.0)

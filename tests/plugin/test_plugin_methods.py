@@ -143,20 +143,21 @@ def test_rk23_global_error_follows_tolerance(chain, reference):
 
 def test_virtual_sites_match_python_engine(chain):
     """segment_repulsion: bond midpoints are OpenMM virtual sites; only beads move."""
+    from knotmm.model.layout import ChainLayout
     from knotmm.model.system import ChainModel, site_positions
 
-    model = ChainModel(segment_repulsion=True)
+    model, ring = ChainModel(segment_repulsion=True), ChainLayout.ring(40)
     sim = Simulation(chain, model=model, integrator=RK23(0.01), platform="Reference")
     sim.run(0.5)
     integ = RPYIntegrator(0.01, "rk23")
-    ctx = plugin_context(build_system(chain, model), site_positions(chain, model), integ)
+    ctx = plugin_context(build_system(chain, model), site_positions(chain, model, ring), integ)
     integ.stepTo(0.5)
     pos = positions_of(ctx)
     assert pos.shape == (80, 3)
     assert integ.getNumForceEvaluations() == sim.n_evaluations
     np.testing.assert_allclose(pos[:40], sim.positions, rtol=0, atol=1e-10)
     # the sites sit at the bond midpoints of the new positions
-    np.testing.assert_allclose(pos[40:], site_positions(pos[:40], model)[40:], atol=1e-12)
+    np.testing.assert_allclose(pos[40:], site_positions(pos[:40], model, ring)[40:], atol=1e-12)
 
 
 def test_from_python_integrator(chain):
