@@ -117,6 +117,11 @@ def execute(args) -> int:
     print(result.report())
     # a point that could not write its files (a full disk): 3, as knotmm run; any other: 1
     unwritten = ("OutputError", "OutputFault", "WriteFault")
-    if any(str(r.get("error") or "").startswith(unwritten) for r in result.failed):
+    unwritable = [r for r in result.failed if str(r.get("error") or "").startswith(unwritten)]
+    if unwritable:
+        first = str(unwritable[0]["error"]).split(": ", 1)[-1]
+        print(f"knotmm: error: {len(unwritable)} of {len(result.failed)} failed points could "
+              f"not write their files ({first}); free the space and run the same command to "
+              f"continue the sweep", file=sys.stderr)
         return 3
     return 1 if result.failed else 0

@@ -3,7 +3,8 @@
 The content goes to a temporary file in the same directory, is flushed to disk (fsync) and
 then renamed over the target, so a process killed at any moment (SIGKILL included) leaves
 a whole file behind. An ``OSError`` (a full disk, a read-only directory) names the target
-file, not the temporary one.
+file, not the temporary one. A temporary file that a killed writer left behind is removed
+the next time its target is written.
 """
 
 from __future__ import annotations
@@ -39,6 +40,22 @@ def write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) ->
         if isinstance(exc, OSError) and exc.filename in (None, tmp):
             exc.filename = str(path)
         raise
+    _remove_stale(path)
+
+
+def _remove_stale(path: Path) -> None:
+    """Remove temporary files of ``path`` that a killed writer left (SIGKILL cannot clean up).
+
+    Called once ``path`` was replaced: the commands that write a file hold its directory's
+    lock, so no other writer of ``path`` is under way.
+    """
+    prefix = f".{path.name}."
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(path.parent):
+            rest = entry.name[len(prefix):]
+            if entry.name.startswith(prefix) and ".tmp" in rest and entry.is_file():
+                with contextlib.suppress(OSError):
+                    os.unlink(entry.path)
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
@@ -70,6 +87,7 @@ def replacing(path: str | os.PathLike) -> Iterator[Path]:
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
+        _remove_stale(path)
     except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
