@@ -1,4 +1,4 @@
-"""Measure the stability limit of the fixed-step integrators on the study's chain.
+"""Validation: the stability limit of the fixed-step integrators on the study's chain.
 
 For each fixed-step integrator, bisect the step size dt: a run is *stable* when a T(p,q)
 chain (default T(2,3), N = 90, the study's parameters) simulated for ``--duration`` tau_d
@@ -8,8 +8,13 @@ steps are cheap. The result is the largest stable dt found and the smallest unst
 
 Run on demand (not part of the tests)::
 
-    python benchmarks/stability.py                      # heun, euler, midpoint at N = 90
-    python benchmarks/stability.py --beads 40 90 120 --duration 50
+    python benchmarks/validate_stability.py                 # heun, euler, midpoint at N = 90
+    python benchmarks/validate_stability.py --beads 40 90 120 --duration 50
+    python benchmarks/validate_stability.py --duration 500 --lo 0.02 --hi 0.05 --rel 0.02
+    python benchmarks/validate_stability.py --quick         # a smoke run
+
+The brackets are written as data (``benchmarks/results/validate_stability.json``, or
+``--out``; see ``benchmarks/harness.py``).
 
 Notes
 -----
@@ -27,6 +32,7 @@ from __future__ import annotations
 import argparse
 import time
 
+import harness
 import numpy as np
 
 from knotmm.dynamics.registry import make
@@ -89,7 +95,16 @@ def main(argv=None):
         help="re-run the stable end of each bracket for 5x the duration",
     )
     parser.add_argument("--quiet", action="store_true")
+    parser.add_argument("--quick", action="store_true",
+                        help="euler at N = 40, 2 tau_d, a coarse bracket (a smoke run); "
+                             "nothing saved unless --out")
+    parser.add_argument("--out", default=None,
+                        help="result file (JSON); default benchmarks/results/"
+                             "validate_stability.json; '-': do not save")
     args = parser.parse_args(argv)
+    if args.quick:
+        args.integrators, args.beads, args.duration, args.rel = ["euler"], [40], 2.0, 0.2
+    info = harness.header()
     log = (lambda *a: None) if args.quiet else print
 
     rows = []
@@ -127,6 +142,10 @@ def main(argv=None):
     for n, name, lo, hi, long_ok, wall in rows:
         extra = f"  {'stable' if long_ok else 'UNSTABLE':>10}" if args.check else ""
         print(f"{n:>5} {name:>10} {lo:>18.5f} {hi:>18.5f}{extra} {wall:>9.1f}")
+    results = {f"{n}/{name}": {"largest_stable": lo, "smallest_unstable": hi,
+                               "five_times_longer_stable": long_ok, "wall": wall, "unit": "tau_d"}
+               for n, name, lo, hi, long_ok, wall in rows}
+    harness.save("validate_stability", args, results, machine_before=info)
 
 
 if __name__ == "__main__":

@@ -1,21 +1,12 @@
-"""What one force + mobility evaluation costs inside a run, for several Force layouts and platforms.
+"""Force layouts, platforms and thread placements of knotmm's System, for ``bench_forces.py
+layouts``: what one evaluation costs inside a run, and whether a variant keeps the forces.
 
-For a T(2,3) of N beads (default 90 and 240) and each variant below, the compiled plugin's
-rk23 (``knotmm.plugin.RPYIntegrator``, tolerance 1e-4 d, as ``knotmm run``) integrates the
-chain from the template for ``--duration`` tau_d in a fresh Context; the cost of an evaluation
-is the wall time of ``stepTo`` over the evaluations it made (``getNumForceEvaluations``), so
-the beads move from call to call as in a run and OpenMM's neighbour list is rebuilt as often
-as it is in a run. Variants are interleaved within a round; the table gives medians over the
-rounds and the ratio to ``current`` of the same round (median of the per-round ratios).
-
-Variants (``--variants`` picks some; ``--list`` prints them):
+Variants (:data:`VARIANTS`; ``NAME@pin``: any of them with the calling thread and OpenMM's
+pool thread on one core, :class:`harness.Pinned`, only where the threads run changes):
 
 * ``current``: knotmm's System (``chain_system``) on the platform a run uses (CPU, one thread).
 * ``cpu-2threads``, ``cpu-deterministic``: the same System, CPU platform with ``Threads = 2``
   or ``DeterministicForces = true``.
-* ``NAME@pin`` (any variant): the same, with the calling thread and OpenMM's worker thread on
-  one core (``os.sched_setaffinity`` of the main thread before the Context is made, so the
-  pool's thread inherits it; undone after the timing). Only where the threads run changes.
 * ``one-group``: the four forces in force group 0 (same Forces, same order).
 * ``reference``: the same System on the Reference platform (double precision, no thread pool).
 * ``*-cnb``: the steric term as a ``CustomNonbondedForce`` (cutoff ``rc``, bonded pairs
@@ -33,32 +24,24 @@ Variants (``--variants`` picks some; ``--list`` prints them):
   call + the RPY mobility; the chain does not move, so a fixed number of Euler steps is
   timed instead).
 
-``--check`` first compares each variant's forces with the current System's on the
-Reference platform at a few shapes along the run (largest difference relative to the largest
-force). The bits of a trajectory are compared by ``--bits``: positions after ``--duration``
-against ``current``'s on the same platform.
-
-Run on demand (not part of the tests; about 1-3 min)::
-
-    python benchmarks/bench_evaluation.py
-    python benchmarks/bench_evaluation.py --beads 90 --rounds 7 --variants current reference
+:func:`time_variant` times one stretch of the plugin's rk23 (tolerance 1e-4 d, as ``knotmm
+run``) from the template in a fresh Context: wall time of ``stepTo`` over the evaluations it
+made (``getNumForceEvaluations``), so the beads move from call to call as in a run.
+:func:`check_forces` compares each variant's forces with the current System's on the
+Reference platform (shapes along the run and thin-tube shapes with steric contacts) and with
+central differences of its own energy; :func:`check_bits` compares positions after the run.
 """
 
 from __future__ import annotations
 
-import argparse
-import ctypes
-import os
-import statistics
 import time
 
 import numpy as np
 import openmm
+from harness import Pinned
 
-from knotmm.model.forces import FORCE_GROUPS
-from knotmm.model.parameters import ChainModel
+from knotmm.model.layout import ChainLayout
 from knotmm.model.system import chain_system
-from knotmm.model.topology import ring_bonds
 from knotmm.shapes import torus_knot
 
 CPU1 = ("CPU", {"Threads": "1"})
@@ -90,7 +73,7 @@ def _replace(system, name, new):
 
 
 def _nonbonded_pairs(n):
-    bonded = {tuple(sorted(map(int, b))) for b in ring_bonds(n)}
+    bonded = {tuple(sorted(map(int, b))) for b in ChainLayout.ring(n).bonds()}
     return [(i, j) for i in range(n) for j in range(i + 1, n) if (i, j) not in bonded]
 
 
@@ -109,7 +92,7 @@ def _cnb(n, model, method, cutoff, truncate):
     force.setUseLongRangeCorrection(False)
     for _ in range(n):
         force.addParticle([])
-    for i, j in ring_bonds(n):
+    for i, j in ChainLayout.ring(n).bonds():
         force.addExclusion(int(i), int(j))
     return force
 
@@ -215,26 +198,6 @@ DEFAULT = ["current", "current@pin", "cpu-2threads", "cpu-deterministic", "one-g
 
 
 # -- timing ---------------------------------------------------------------------------------
-_libc = ctypes.CDLL(None, use_errno=True)
-
-
-class _Pinned:
-    """The calling thread on the core it runs on now (threads it starts inherit this)."""
-
-    def __init__(self, on):
-        self.on = on
-
-    def __enter__(self):
-        if self.on:
-            self.saved = os.sched_getaffinity(0)
-            os.sched_setaffinity(0, {_libc.sched_getcpu()})
-        return self
-
-    def __exit__(self, *exc):
-        if self.on:
-            os.sched_setaffinity(0, self.saved)
-
-
 def _integrator(method="rk23", step=0.01):
     from knotmm.plugin import RPYIntegrator
 
@@ -259,7 +222,7 @@ def _context(name, x, model, method="rk23", step=0.01):
 
 def time_variant(name, x, model, duration):
     """Seconds per evaluation of one timed stretch in a fresh Context, and the evaluations."""
-    with _Pinned(_variant(name)[3]):
+    with Pinned(_variant(name)[3]):
         if name.partition("@")[0].endswith("noforce"):  # a chain that does not move:
             # a fixed number of Euler steps
             context, integ = _context(name, x, model, "euler", 1e-5)
@@ -348,7 +311,7 @@ def check_bits(names, x, model, duration):
     """Largest position difference (d) after ``duration`` against ``current`` (CPU variants)
     or ``reference`` (Reference variants), from ``x``; and the evaluations of both."""
     def final(name):
-        with _Pinned(_variant(name)[3]):
+        with Pinned(_variant(name)[3]):
             context, integ = _context(name, x, model)
             integ.stepTo(duration)
             pos = context.getState(getPositions=True).getPositions(asNumpy=True)
@@ -363,69 +326,3 @@ def check_bits(names, x, model, duration):
         ref_pos, ref_ev = base[_variant(name)[1]]
         out[name] = (float(np.max(np.abs(pos - ref_pos))), ev, ref_ev)
     return out
-
-
-def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--beads", type=int, nargs="+", default=[90, 240])
-    parser.add_argument("--variants", nargs="+", default=DEFAULT,
-                        help="names of --list; NAME@pin: the same on one core")
-    parser.add_argument("--rounds", type=int, default=5)
-    parser.add_argument("--duration", type=float, default=8.0,
-                        help="simulated tau_d per timing (from the template)")
-    parser.add_argument("--check", action="store_true", help="compare forces first")
-    parser.add_argument("--bits", action="store_true", help="compare trajectories first")
-    parser.add_argument("--list", action="store_true")
-    args = parser.parse_args(argv)
-    if args.list:
-        print("\n".join(VARIANTS))
-        return
-    names = list(dict.fromkeys(["current", *args.variants]))
-    model = ChainModel()
-    assert set(FORCE_GROUPS) == {"bond", "bend", "steric", "gravity"}
-    for n in args.beads:
-        x = torus_knot(2, 3, n)
-        if args.check:
-            print(f"\nN = {n}: forces and energy against the current System (Reference "
-                  f"platform; 4 shapes along the run and 3 with steric contacts): "
-                  f"max |dF| / max |F|, max |dE| / |E|; forces against central differences "
-                  f"of the variant's energy (h = 1e-5 d, 12 coordinates), / max |F|")
-            for name, (df, de, fd) in check_forces(names, x, model, args.duration).items():
-                print(f"  {name:24s} {df:9.2e} {de:9.2e} {fd:9.2e}")
-        if args.bits:
-            for label, start in (("the template", x),
-                                 ("a thin-tube template (steric contacts)",
-                                  torus_knot(2, 3, n, minor_radius=0.26))):
-                print(f"\nN = {n}: positions after {args.duration:g} tau_d from {label} "
-                      f"against current (CPU variants) or reference (Reference variants): "
-                      f"max |dx| [d], evaluations (variant / baseline)")
-                for name, (dx, ev, ev0) in check_bits(names, start, model,
-                                                      args.duration).items():
-                    print(f"  {name:24s} {dx:9.2e} {ev:6d} {ev0:6d}")
-        samples = {name: [] for name in names}
-        evals = {}
-        for name in names:  # warm-up: loading, JIT of custom expressions
-            time_variant(name, x, model, 0.5)
-        load = [os.getloadavg()[0]]
-        for _ in range(args.rounds):
-            for name in names:
-                per, ev = time_variant(name, x, model, args.duration)
-                samples[name].append(per)
-                evals[name] = ev
-        load.append(os.getloadavg()[0])
-        ratios = {name: statistics.median(a / b for a, b in zip(samples[name],
-                                                                samples["current"],
-                                                                strict=True))
-                  for name in names}
-        print(f"\nN = {n}: microseconds per evaluation inside a run (rk23 from the template, "
-              f"{args.duration:g} tau_d a timing, medians of {args.rounds} interleaved rounds; "
-              f"load average {load[0]:.2f}-{load[1]:.2f})")
-        print(f"  {'variant':24s} {'median':>8} {'min':>8} {'max':>8} {'ratio':>6} {'evals':>6}")
-        for name in names:
-            s = [v * 1e6 for v in samples[name]]
-            print(f"  {name:24s} {statistics.median(s):8.1f} {min(s):8.1f} {max(s):8.1f} "
-                  f"{ratios[name]:6.2f} {evals[name]:6d}")
-
-
-if __name__ == "__main__":
-    main()

@@ -1,4 +1,4 @@
-"""The adaptive Brownian default against a small fixed step: swirl period and sedimentation speed.
+"""Validation: the adaptive Brownian default against a small fixed step (swirl, speed).
 
 Issue 20 asks that at Pe = 10 and 50 the swirl period and the sedimentation speed of the
 defaults (``run.integrator = "auto"``, i.e. ``ito_heun_adaptive``) equal those of
@@ -12,10 +12,13 @@ in quadrature) and the difference in units of that error. Wall times are whole c
 T(2,3) at N = 60 (the flat torus and its swirl persist over 60 tau_d at Pe >= 10 at this N:
 ``examples/peclet_persistence``), the study's model (no segment repulsion), gravity 1:
 
-    python benchmarks/bench_brownian_observables.py --peclet 10 50 --replicas 8 \
+    python benchmarks/validate_brownian_observables.py --peclet 10 50 --replicas 8 \
         --duration 60 --window 10 60
+    python benchmarks/validate_brownian_observables.py --quick      # a smoke run
 
-Each run directory is kept under ``--work`` (default: a temporary directory).
+Each run directory is kept under ``--work`` (default: a temporary directory). The
+comparisons are written as data (``benchmarks/results/validate_brownian_observables.json``,
+or ``--out``; see ``benchmarks/harness.py``).
 """
 
 from __future__ import annotations
@@ -23,12 +26,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+import harness
 
 
 def run_set(work: Path, pe: float, spec: str, args) -> dict:
@@ -98,13 +102,24 @@ def main(argv=None):
     parser.add_argument("--reuse", action="store_true",
                         help="a set already run and analysed in --work is not run again "
                              "(its wall time is then not measured)")
+    parser.add_argument("--quick", action="store_true",
+                        help="Pe = 10, 2 replicas of N = 40 for 3 tau_d (a smoke run); "
+                             "nothing saved unless --out")
+    parser.add_argument("--out", default=None,
+                        help="result file (JSON); default benchmarks/results/"
+                             "validate_brownian_observables.json; '-': do not save")
     args = parser.parse_args(argv)
-    print(f"load average at start: {os.getloadavg()[0]:.2f}", flush=True)
+    if args.quick:
+        args.peclet, args.beads, args.replicas = [10.0], 40, 2
+        args.duration, args.window, args.frame_interval = 3.0, [1.0, 3.0], 0.1
+    info = harness.header()
+    results = {}
     with tempfile.TemporaryDirectory() as tmp:
         work = args.work or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         for pe in args.peclet:
             rows = [run_set(work, pe, spec, args) for spec in args.integrators]
+            results[f"{pe:g}"] = rows
             for row in rows:
                 state = "finished" if row["ok"] else f"FAILED: {row['message']}"
                 print(f"Pe = {pe:g}, {row['spec']}: {args.replicas} replicas, wall "
@@ -114,7 +129,7 @@ def main(argv=None):
                     print(f"  Pe = {pe:g}, " + compare(rows[0], rows[1], key), flush=True)
                 det = [r["swirl_detected"][3] for r in rows]
                 print(f"  swirl detected per replica: {det[0]} / {det[1]}", flush=True)
-    print(f"load average at end: {os.getloadavg()[0]:.2f}")
+    harness.save("validate_brownian_observables", args, results, machine_before=info)
 
 
 if __name__ == "__main__":
