@@ -87,26 +87,9 @@ class Key:
 
 
 def resolve_stepping(cfg) -> tuple[str, float]:
-    """The integrator and step a run uses: ``run.integrator`` and ``run.timestep`` resolved.
-
-    ``integrator = "auto"`` is ``rk23`` for deterministic runs (``run.peclet = inf``; a run
-    then takes ``rkc2`` instead when the chain is stiff) and ``ito_heun_adaptive``
-    (:data:`knotmm.dynamics.registry.AUTO_BROWNIAN`) at a finite Peclet number; an unset
-    ``timestep`` is the integrator's default step at finite Pe (0.01 for
-    leimkuhler_matthews; 0.002 for ito_heun, euler_maruyama and, as its first step,
-    ito_heun_adaptive), else 0.01
-    (:func:`knotmm.dynamics.registry.resolve`, which holds the policy). So setting
-    ``run.peclet`` alone gives a sound Brownian run.
-
-    Parameters
-    ----------
-    cfg : RunConfig (or a mapping with the same dotted keys)
-
-    Returns
-    -------
-    (str, float)
-        Integrator name and step in tau_d.
-    """
+    """The integrator and step a run uses, ``(name, step in tau_d)``: ``run.integrator`` and
+    ``run.timestep`` resolved by :func:`knotmm.dynamics.registry.resolve`, which holds the
+    policy (``"auto"``, default steps). ``cfg``: a RunConfig or a mapping of dotted keys."""
     return registry.resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
 
 
@@ -170,32 +153,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "run": {
         "duration": Key("float", 200.0, "simulated time, in tau_d", 0.0, None, True),
-        "integrator": Key(
-            "str", "auto",
-            "time stepper: auto (default: rk23 at run.peclet = inf, or rkc2 when the chain is "
-            f"stiff; {registry.AUTO_BROWNIAN} at finite Pe), rk23 (adaptive), rkc2 "
-            "(adaptive, for very stiff chains), heun, midpoint, euler; finite run.peclet: "
-            "ito_heun_adaptive (adaptive, survives close contacts), leimkuhler_matthews "
-            "(timestep 0.01; breaks down at Pe <~ 1), ito_heun "
-            "(timestep 0.002) or euler_maruyama",
-            choices=(registry.AUTO, *registry.NAMES),
-        ),
-        "timestep": Key(
-            "float", None, "step in tau_d (fixed-step and Brownian integrators); the first "
-            "step of an adaptive one; default 0.01 (at finite run.peclet: 0.01 for "
-            "leimkuhler_matthews, 0.002 for ito_heun, euler_maruyama and ito_heun_adaptive)",
-            0.0, None, True,
-        ),
-        "tolerance": Key(
-            "float", None, "adaptive integrators: local error per step, in d; default 1e-4 "
-            "(ito_heun_adaptive: 0.02, times (10 / Pe)^1.5 above Pe = 10, at least 1e-4)",
-            0.0, None, True,
-        ),
-        "max_timestep": Key("float", 1.0, "adaptive integrators: largest step, in tau_d", 0.0,
-                            None, True),
+        "integrator": Key("str", registry.AUTO, registry.integrator_help(),
+                          choices=(registry.AUTO, *registry.NAMES)),
+        "timestep": Key("float", None, registry.timestep_help(), 0.0, None, True),
+        "tolerance": Key("float", None, registry.tolerance_help(), 0.0, None, True),
+        "max_timestep": Key("float", registry.DEFAULT_MAX_TIMESTEP,
+                            "adaptive integrators: largest step, in tau_d", 0.0, None, True),
         "min_timestep": Key(
-            "float", 1e-7, "adaptive integrators: a step below this stops the run, in tau_d",
-            0.0, None, True,
+            "float", registry.DEFAULT_MIN_TIMESTEP,
+            "adaptive integrators: a step below this stops the run, in tau_d", 0.0, None, True,
         ),
         "max_bond_length": Key(
             "float", 3.0, "a bond longer than this stops the run, in d", 0.0, None, True,
@@ -204,15 +170,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "float", math.inf, "Peclet number d F0/(kT); inf: deterministic", limits.MIN_PECLET,
             allow_inf=True, why=limits.PECLET_WHY,
         ),
-        "platform": Key("str", "auto", "OpenMM platform: auto, Reference, CPU, CUDA, OpenCL",
-                        choices=("auto", "Reference", "CPU", "CUDA", "OpenCL", "HIP")),
+        "platform": Key("str", "auto", "OpenMM platform: auto, " + ", ".join(registry.PLATFORMS),
+                        choices=("auto", *registry.PLATFORMS)),
         "engine": Key(
             "str", "auto",
             "who integrates: plugin (the compiled knotmm.plugin.RPYIntegrator: every step in "
             "C++, same steps as python for deterministic methods; Cholesky or Lanczos noise; "
-            "Reference and CPU platforms), python (the Python integrators, the reference), "
-            "auto (plugin when it is built, Brownian runs too; python otherwise and on GPU "
-            "platforms)",
+            f"{' and '.join(registry.PLUGIN_PLATFORMS)} platforms), python (the Python "
+            "integrators, the reference), auto (plugin when it is built, Brownian runs too; "
+            "python otherwise and on GPU platforms)",
             choices=("auto", registry.PLUGIN_ENGINE, registry.PYTHON_ENGINE),
         ),
         "threads": Key("int", 1, "CPU platform threads", 1, limits.MAX_THREADS,
@@ -236,8 +202,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
             choices=("auto", "cholesky", "lanczos"),
         ),
         "lanczos_tolerance": Key(
-            "float", 1e-6, "lanczos noise: relative change between successive iterates",
-            0.0, None, True,
+            "float", registry.DEFAULT_LANCZOS_TOLERANCE,
+            "lanczos noise: relative change between successive iterates", 0.0, None, True,
         ),
         "topology_check_interval": Key(
             "float", 10.0,
@@ -493,13 +459,17 @@ class RunConfig(Mapping):
 
     def chain_config(self, index: int) -> RunConfig:
         """The one-chain run configuration of ``[[chains]]`` entry ``index``: its keys as the
-        ``[knot]`` table (without ``offset`` and ``rotation``), the other tables as here."""
-        entry = {k: v for k, v in self._chains[index].items()
-                 if k in SCHEMA["knot"] and v is not None}
-        data = self.to_dict()
-        data.pop("chains")
-        data["knot"] = entry
-        return RunConfig.from_dict(data)
+        ``[knot]`` table (without ``offset`` and ``rotation``), the other tables as here.
+
+        Not validated again: the entry's keys are ``[knot]``'s, validated (sizes too) with
+        the ``[[chains]]`` array, and the other tables with this configuration."""
+        entry = self._chains[index]
+        values = copy.deepcopy(self._values)
+        values["knot"] = {
+            name: copy.deepcopy(entry[name] if entry.get(name) is not None else key.default)
+            for name, key in SCHEMA["knot"].items()
+        }
+        return RunConfig(values, None)
 
     def table(self, name: str) -> dict[str, Any]:
         """A copy of one table, ``{key: value}`` (unset optional keys are ``None``)."""
@@ -509,7 +479,25 @@ class RunConfig(Mapping):
 
     def replace(self, changes: Mapping[str, Any]) -> RunConfig:
         """Return a validated copy with ``{"table.key": value}`` changes applied
-        (``"chains"``: a new ``[[chains]]`` array)."""
+        (``"chains"``: a new ``[[chains]]`` array). Only the changed keys are validated (as
+        :meth:`from_dict` would), then the cross-key checks; a change of shape (``chains`` on a
+        ``[knot]`` run, ``knot.*`` on a ``[[chains]]`` run) goes through :meth:`from_dict`."""
+        several = self._chains is not None
+        if not any(d.startswith("knot.") if several else d == "chains" for d in changes):
+            values = copy.deepcopy(self._values)
+            chains = self._chains
+            for dotted, value in changes.items():
+                if dotted == "chains":
+                    chains = _check_chains([{k: v for k, v in dict(e).items() if v is not None}
+                                            for e in value])
+                    continue
+                table, name = split_key(dotted)
+                values[table][name] = _check_value(dotted, SCHEMA[table][name], value)
+            if chains is None and any(d.startswith("knot.") for d in changes):
+                limits.check_shape_sizes(values["knot"], "knot.")
+            cfg = RunConfig(values, copy.deepcopy(chains))
+            cfg._check_consistency()
+            return cfg
         data = self.to_dict(include_unset=False)
         for dotted, value in changes.items():
             if dotted == "chains":  # the whole [[chains]] array (a template's resolved keys)

@@ -7,7 +7,7 @@ the seeds of a sweep's ensembles too), so replica k equals a single run with tha
 for bit, and adding replicas keeps the seeds of the others. Nothing couples the copies: each
 has its own System, Context, noise and step control. They run one after another in this
 process, which pays the start-up of Python, OpenMM, the plugin and numba once instead of K
-times (benchmarks/bench_replicas.py measures it against K single runs).
+times (``benchmarks/bench_workflow.py replicas`` measures it against K single runs).
 
 A replica whose dynamics breaks down (:class:`knotmm.errors.SimulationFault`) is recorded
 as a fault in its run.toml and the others go on; a file that cannot be written (a full disk)
@@ -52,7 +52,8 @@ from knotmm.io.rundir import (
     run_status,
     writing,
 )
-from knotmm.workflow import OutputFault, RunResult, build_run, resume, run
+from knotmm.plan import prepare
+from knotmm.workflow import OutputFault, RunResult, resume, run
 
 __all__ = ["ReplicaSetResult", "replica_seeds", "resume_replicas", "run_replicas"]
 
@@ -131,22 +132,24 @@ def _replica_config(cfg: RunConfig, seed: int, directory: Path) -> RunConfig:
 def _check_replicas(cfg: RunConfig, root: Path, seeds: list[int]) -> None:
     """Every check of the input that can refuse the set, before anything is written.
 
-    Replica 0 is built as :func:`knotmm.workflow.run` builds a run (the integrator against
+    Replica 0 is planned as :func:`knotmm.workflow.run` plans a run (the integrator against
     ``run.peclet``, the template and its geometry and overlap checks, the Simulation:
-    :func:`~knotmm.workflow.build_run`); the templates of the others are checked too when
-    the template depends on ``run.seed`` (a perturbation), which replica 1's shows.
+    :func:`knotmm.plan.prepare`); the templates of the others are checked too, with that
+    plan's memory budget, when the template depends on ``run.seed`` (a perturbation), which
+    replica 1's shows.
     """
     from knotmm.shapes.builder import build_template
 
     if root.exists() and not root.is_dir():
         raise RunDirectoryError(f"output directory {str(root)!r} is a file; choose another --out")
-    first = None
+    first = resources = None
     for k, seed in enumerate(seeds):
         sub = _replica_config(cfg, seed, replica_directory(root, k))
         if k == 0:
-            first = build_run(sub, identify="skip")[1].positions
+            built = prepare(sub, identify="skip")
+            first, resources = built.template.positions, built.plan.resources
             continue
-        positions = build_template(sub, identify="skip").positions
+        positions = build_template(sub, identify="skip", resources=resources).positions
         if k == 1 and np.array_equal(positions, first):
             break  # the start does not depend on the seed: the others are replica 0's
 

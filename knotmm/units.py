@@ -24,6 +24,8 @@ from knotmm.errors import ConfigError
 ANGSTROM_PER_D = 10.0
 #: nm per bead diameter inside OpenMM.
 NM_PER_D = 1.0
+#: Angstrom per nm: mdtraj, as OpenMM, holds lengths in nm and reads and writes files in A.
+ANGSTROM_PER_NM = ANGSTROM_PER_D / NM_PER_D
 #: ps per tau_d inside OpenMM.
 PS_PER_TAU = 1.0
 #: kJ/mol per F0 d inside OpenMM.
@@ -40,6 +42,20 @@ def d_to_angstrom(x):
 def angstrom_to_d(x):
     """Convert lengths in Angstrom (from DCD/PDB files) to bead diameters."""
     return x / ANGSTROM_PER_D
+
+
+def d_to_mdtraj(x):
+    """Lengths in d as an mdtraj Trajectory holds them (nm), for writing Angstrom files.
+
+    Converted through Angstrom (``x * 10 * 0.1``, not ``x * NM_PER_D``): the rounding every
+    knotmm PDB has been written with, so a file written again is the same file.
+    """
+    return d_to_angstrom(x) * (1.0 / ANGSTROM_PER_NM)
+
+
+def mdtraj_to_angstrom(x):
+    """Lengths of an mdtraj Trajectory (nm) in Angstrom, as its file holds them."""
+    return x * ANGSTROM_PER_NM
 
 
 def thermal_energy(peclet: float) -> float:

@@ -3,7 +3,8 @@
 The run directory's files are described in :mod:`knotmm.io.rundir`; the simulation and its
 reporters in :mod:`knotmm.engine` (``docs/architecture.md``). :func:`run`, as pseudocode::
 
-    resolve run.integrator = "auto" and the template; build the Simulation
+    plan the run once (knotmm.plan.prepare): the integrator and step ("auto" resolved), the
+        template, the Simulation, the reasons run.toml records
         (a bad config, template or platform fails here: nothing written)
     lock the directory (a live owner: refused); check it, clear it with overwrite
     write topology.pdb, view.vmd, run.toml (status = "running"; a failure removes them)
@@ -31,14 +32,12 @@ from pathlib import Path
 import numpy as np
 
 from knotmm import __version__
-from knotmm.config import RunConfig, resolve_stepping, resolve_tolerance
-from knotmm.dynamics.registry import AUTO, AUTO_STIFFNESS, REGISTRY, auto_deterministic
+from knotmm.config import RunConfig
 from knotmm.engine.check_record import RECORD_KEY, checks_positions, checks_record, resumed_record
 from knotmm.engine.checkpoint import CheckpointReporter, read_checkpoint
 from knotmm.engine.interrupt import StopRequested, describe_signal, stop_signal
 from knotmm.engine.knot_checks import (
     TemplateKnotCheck,
-    check_stop_on_change,
     finish_checks,
     knot_watch,
     linking_watch,
@@ -79,6 +78,7 @@ from knotmm.io.rundir import (
 )
 from knotmm.io.vmd import write_vmd_script
 from knotmm.model.layout import ChainLayout
+from knotmm.plan import Output, prepare
 
 __all__ = ["RESUMABLE_KEYS", "RunResult", "OutputFault", "build_run", "run", "resume"]
 
@@ -189,7 +189,9 @@ def run(
     wall0 = time.perf_counter()
     start_worker()  # topoly's start-up in the knot worker overlaps building the run
     directory = Path(directory if directory is not None else cfg["output.directory"])
-    cfg, template, sim, choice_reason = build_run(cfg, identify="later")  # judged beside it
+    built = prepare(cfg, identify="later")  # the template's knot type judged beside the run
+    plan, template, sim = built.plan, built.template, built.simulation
+    cfg = plan.config
     if cfg["output.directory"] != str(directory):
         cfg = cfg.replace({"output.directory": str(directory)})
     if directory.exists() and not directory.is_dir():
@@ -210,7 +212,7 @@ def run(
                    else {"layout": template.layout.to_record()}),
                 "engine": sim.engine,
                 "integrator": sim.integrator.describe(),
-                **({"integrator_choice": choice_reason} if choice_reason else {}),
+                **plan.reasons,
                 "platform": sim.platform_name,
                 "frame_interval": cfg["output.frame_interval"],
                 "start_z": float(sim.positions[:, 2].mean()),
@@ -227,48 +229,19 @@ def run(
 
 def build_run(cfg: RunConfig, identify: str = "now"):
     """What :func:`run` builds before it writes anything, also ``sweep --dry-run``'s check:
-    the integrator and step resolved and checked, the template with its layout
-    (``[[chains]]``, links, open filaments; ``identify`` as
-    :func:`~knotmm.shapes.builder.build_template`'s), the Simulation on that layout.
+    the run plan and what it built (:func:`knotmm.plan.prepare`: the integrator and step
+    resolved and checked, the template with its layout, ``identify`` as
+    :func:`~knotmm.shapes.builder.build_template`'s, the Simulation on that layout).
 
     Returns
     -------
     tuple
-        ``(cfg, template, sim, choice_reason)``: ``cfg`` resolved, and why ``auto`` chose
-        the integrator (None when named).
+        ``(cfg, template, sim, choice_reason)``: ``cfg`` resolved (the plan's record), and
+        why ``auto`` chose the integrator (None when named).
     """
-    from knotmm.dynamics.registry import integrator_from_config
-    from knotmm.shapes.builder import build_template
-
-    name, timestep = resolve_stepping(cfg)  # run.toml records what is used, not "auto"
-    chosen = cfg["run.integrator"] == AUTO
-    by_stiffness = chosen and not math.isfinite(cfg["run.peclet"])
-    choice_reason = (f"auto at run.peclet = {cfg['run.peclet']:g}: {name}, adaptive Brownian "
-                     f"steps (fixed steps break down at close steric contacts at Pe <~ 1)"
-                     if chosen and not by_stiffness else None)
-    cfg = cfg.replace({"run.integrator": name, "run.timestep": timestep,
-                       "run.tolerance": resolve_tolerance(cfg, name)})
-    integrator_from_config(cfg)  # checks the integrator against run.peclet before the template
-    check_stop_on_change(cfg)
-    template = build_template(cfg, identify=identify)
-    if template.resolved:
-        cfg = cfg.replace(template.resolved)
-    sim = Simulation.from_config(cfg, template.positions, layout=template.layout)
-    if by_stiffness:
-        stiffness = sim.stiffness()
-        choice = auto_deterministic(stiffness)
-        log.info("run.integrator auto: stiffness %.4g / tau_d -> %s", stiffness, choice)
-        choice_reason = (f"auto at run.peclet = inf: {choice}, the chain's stiffness (RKC's "
-                         f"spectral radius at the start) is {stiffness:.4g} / tau_d "
-                         f"({'above' if choice == 'rkc2' else 'at most'} "
-                         f"{AUTO_STIFFNESS:g})")
-        if choice != name:
-            cfg = cfg.replace({"run.integrator": choice})
-            # the engine already chosen (and warned about) when the new integrator has it
-            engine = sim.engine if sim.engine in REGISTRY[choice].engines else None
-            sim = Simulation.from_config(cfg, template.positions, engine=engine,
-                                         layout=template.layout)
-    return cfg, template, sim, choice_reason
+    built = prepare(cfg, identify=identify)
+    plan = built.plan
+    return plan.config, built.template, built.simulation, plan.reasons.get("integrator_choice")
 
 
 def resume(
@@ -426,10 +399,9 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
     """
     resuming = counters is not None
     counters = counters or {"frames": 0, "rows": 0, "checkpoints": 0, "checks": 0}
-    frame_interval = cfg["output.frame_interval"]
-    obs_interval = cfg["output.observables_interval"] or frame_interval
-    ckpt_interval = frame_interval * max(1, math.ceil(cfg["output.checkpoint_interval"]
-                                                      / frame_interval - 1e-9))
+    output = Output.of(cfg)
+    frame_interval = output.frame_interval
+    obs_interval, ckpt_interval = output.observables_interval, output.checkpoint_interval
     reporters = []
     dcd = obs = watch = links = bar = None
     status, message = STATUS_FAULT, None

@@ -26,7 +26,7 @@ LAYERS = [
     {"shapes"},
     {"plugin"},
     {"engine"},
-    {"workflow", "replicas"},
+    {"workflow", "replicas", "plan"},
     {"analysis"},
     {"orbit"},
     {"sweep"},

@@ -15,8 +15,7 @@ Examples
 Modules: :mod:`~knotmm.io.run_data` (loading), :mod:`~knotmm.analysis.window` (steady
 window), :mod:`~knotmm.analysis.spectra`, :mod:`~knotmm.analysis.fit`,
 :mod:`~knotmm.analysis.topology`, :mod:`~knotmm.analysis.plots` (imported on first use),
-:mod:`~knotmm.analysis.synthetic` and :mod:`~knotmm.analysis.synthetic_regimes`
-(trajectories with known answers), :mod:`~knotmm.analysis.body` (torus normal, body
+:mod:`~knotmm.analysis.body` (torus normal, body
 cylindrical coordinates, flat-torus criterion), :mod:`~knotmm.analysis.detect` (is there a
 swirl?), :mod:`~knotmm.analysis.regimes` and :mod:`~knotmm.analysis.regime_report` (regime
 checks and their analysis.json keys), :mod:`~knotmm.analysis.bootstrap` (block-bootstrap

@@ -211,7 +211,8 @@ def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_sam
     bond = data.get("model.bond_length")
     if bond is None:
         x0 = positions[0]
-        bond = float(np.median(np.linalg.norm(np.roll(x0, -1, axis=0) - x0, axis=1)))
+        pairs = np.asarray(data.bonds)
+        bond = float(np.median(np.linalg.norm(x0[pairs[:, 1]] - x0[pairs[:, 0]], axis=1)))
         notes.append(f"no model.bond_length in a run file: l0 = {bond:.4g} d measured at t = 0")
     bond = float(bond)
     rho_geo = float("nan")

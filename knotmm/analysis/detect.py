@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from knotmm.analysis.spectra import refine_frequency
+from knotmm.units import angstrom_to_d, d_to_angstrom
 
 __all__ = [
     "FALSE_ALARM",
@@ -146,7 +147,7 @@ def float32_spacing(max_abs_d: float) -> float:
     max_abs_d : float
         The coordinate's magnitude, in d (1 d = 10 Angstrom in the DCD).
     """
-    return float(np.spacing(np.float32(10.0 * abs(max_abs_d)))) / 10.0
+    return angstrom_to_d(float(np.spacing(np.float32(d_to_angstrom(abs(max_abs_d))))))
 
 
 def _detrend(x: np.ndarray, s: np.ndarray) -> np.ndarray:

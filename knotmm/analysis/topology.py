@@ -26,7 +26,6 @@ import numpy as np
 from knotmm.io.rundir import RUN_FILE
 from knotmm.knots import chirality
 from knotmm.knots.identify import identify_knot
-from knotmm.knots.writhe import writhe as _writhe
 
 __all__ = [
     "KnotTypes",
@@ -35,7 +34,6 @@ __all__ = [
     "handedness",
     "identify_signed",
     "rotation_sense",
-    "mean_writhe",
     "knot_types",
 ]
 
@@ -43,27 +41,6 @@ logger = logging.getLogger(__name__)
 
 #: |writhe| below this is too small to call a handedness.
 WRITHE_THRESHOLD = 0.1
-
-
-def mean_writhe(positions: np.ndarray, max_frames: int = 20) -> tuple[float, float]:
-    """Writhe averaged over up to ``max_frames`` evenly spaced frames.
-
-    Parameters
-    ----------
-    positions : ndarray, shape (n_frames, n_beads, 3)
-        Bead positions (any length unit); bead order is chain order, closed.
-    max_frames : int
-        Frames sampled.
-
-    Returns
-    -------
-    mean, std : float
-        Mean and standard deviation of the writhe over the sampled frames.
-    """
-    x = np.asarray(positions)
-    idx = np.unique(np.linspace(0, len(x) - 1, min(max_frames, len(x))).round().astype(int))
-    values = np.atleast_1d(_writhe(x[idx]))
-    return float(values.mean()), float(values.std())
 
 
 def handedness(writhe: float, threshold: float = WRITHE_THRESHOLD) -> str | None:

@@ -63,7 +63,8 @@ def config_from_args(args) -> RunConfig:
     if args.out is not None:
         changes["output.directory"] = args.out
     if changes:
-        if args.beads is not None and "knot.major_radius" not in changes:
+        if (args.beads is not None and "knot.major_radius" not in changes
+                and cfg["knot.major_radius"] is not None):
             # a run file's resolved radius belongs to its bead count: let it follow --beads
             data = cfg.to_dict()
             data["knot"].pop("major_radius", None)

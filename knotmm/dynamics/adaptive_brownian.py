@@ -50,15 +50,21 @@ import numpy as np
 from knotmm.dynamics.brownian import StochasticIntegrator
 from knotmm.dynamics.deterministic import StepSizeUnderflow, _error_norm
 from knotmm.dynamics.noise import NoiseFunction, NoiseGenerator
+from knotmm.dynamics.registry import (
+    DEFAULT_BROWNIAN_TIMESTEP,
+    DEFAULT_BROWNIAN_TOLERANCE,
+    DEFAULT_LANCZOS_TOLERANCE,
+    DEFAULT_MAX_TIMESTEP,
+    DEFAULT_MIN_TIMESTEP,
+)
 
 __all__ = ["AdaptiveItoHeun", "WienerQueue"]
 
 #: The error estimate's order in the step, for the controller's exponents.
 ERROR_ORDER = 1.5
-#: The default tolerance, in d (the registry's ``default_tolerance`` for this integrator): the
-#: largest that showed no bias against a Metropolis Monte Carlo at Pe = 0.5-10 (0.05 shortened
-#: the bond-length spread by 0.9-1.4 % at Pe = 10; ``benchmarks/bench_brownian_equilibrium.py``).
-DEFAULT_TOLERANCE = 0.02
+#: The default tolerance, in d: the registry's
+#: (:data:`knotmm.dynamics.registry.DEFAULT_BROWNIAN_TOLERANCE`, where its reason is told).
+DEFAULT_TOLERANCE = DEFAULT_BROWNIAN_TOLERANCE
 
 
 class WienerQueue:
@@ -140,10 +146,12 @@ class AdaptiveItoHeun(StochasticIntegrator):
     weak_order = 1
     evaluations_per_step = 2
 
-    def __init__(self, timestep: float, peclet: float = math.inf, seed: int | None = None,
-                 noise: str | NoiseFunction = "auto", lanczos_tolerance: float = 1e-6,
+    def __init__(self, timestep: float = DEFAULT_BROWNIAN_TIMESTEP, peclet: float = math.inf,
+                 seed: int | None = None, noise: str | NoiseFunction = "auto",
+                 lanczos_tolerance: float = DEFAULT_LANCZOS_TOLERANCE,
                  rng: np.random.Generator | None = None, tolerance: float = DEFAULT_TOLERANCE,
-                 max_timestep: float = 0.05, min_timestep: float = 1e-7):
+                 max_timestep: float = DEFAULT_MAX_TIMESTEP,
+                 min_timestep: float = DEFAULT_MIN_TIMESTEP):
         super().__init__(timestep, peclet, seed, noise, lanczos_tolerance, rng)
         if not tolerance > 0:
             raise ValueError(f"tolerance={tolerance!r}: must be > 0")

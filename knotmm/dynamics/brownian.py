@@ -100,6 +100,11 @@ from knotmm.dynamics.noise import (
     encode_rng_state,
     noise_rng,
 )
+from knotmm.dynamics.registry import (
+    DEFAULT_BROWNIAN_TIMESTEP,
+    DEFAULT_LANCZOS_TOLERANCE,
+    DEFAULT_LM_TIMESTEP,
+)
 from knotmm.units import thermal_energy
 
 __all__ = [
@@ -150,11 +155,11 @@ class StochasticIntegrator(Integrator):
 
     def __init__(
         self,
-        timestep: float,
+        timestep: float = DEFAULT_BROWNIAN_TIMESTEP,
         peclet: float = math.inf,
         seed: int | None = None,
         noise: str | NoiseFunction = "auto",
-        lanczos_tolerance: float = 1e-6,
+        lanczos_tolerance: float = DEFAULT_LANCZOS_TOLERANCE,
         rng: np.random.Generator | None = None,
     ):
         super().__init__(timestep)
@@ -337,7 +342,8 @@ class LeimkuhlerMatthews(StochasticIntegrator):
     1.12         1.049            1.098            1.066            0.454
     ============ ================ ================ ================ ========
 
-    On the study's chain (T(2,3), N = 90, Pe = 2, gravity 0, ``benchmarks/bench_brownian.py``)
+    On the study's chain (T(2,3), N = 90, Pe = 2, gravity 0,
+    ``benchmarks/validate_brownian_equilibrium.py boltzmann``)
     the bond-length variance is 1.0003 +- 0.0012 of Boltzmann's at h = 0.01 tau_d (400
     tau_d); its centre-of-mass diffusion agrees with ``ito_heun``'s at 0.002 tau_d within the
     (4-5 %) errors there, and within 0.6 % (errors 0.9 %) on an ensemble of stiff RPY trimers
@@ -364,7 +370,7 @@ class LeimkuhlerMatthews(StochasticIntegrator):
     weak_order = 1
     evaluations_per_step = 1
 
-    def __init__(self, timestep: float, *args, **kwargs):
+    def __init__(self, timestep: float = DEFAULT_LM_TIMESTEP, *args, **kwargs):
         super().__init__(timestep, *args, **kwargs)
         self._kick: np.ndarray | None = None
 

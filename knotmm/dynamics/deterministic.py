@@ -15,8 +15,8 @@ name             order adaptive  largest stable step, study's parameters (measur
 ``rkc2``         2     yes       any step: its stages s grow as sqrt(dt * rho)
 ================ ===== ========= ==============================================================
 
-The stability limits come from ``benchmarks/stability.py`` (a T(2,3) of 90 beads; stable
-means every bond stays below 1 d): 0.051 / 0.058 / 0.052 tau_d (heun / euler / midpoint)
+The stability limits come from ``benchmarks/validate_stability.py`` (a T(2,3) of 90 beads;
+stable means every bond stays below 1 d): 0.051 / 0.058 / 0.052 tau_d (heun / euler / midpoint)
 over 20 tau_d, 0.043 / 0.044 / 0.043 over 100 and 200 tau_d. After a few hundred tau_d the
 torus collapses into a compact coil whose steric contacts are stiffer, and only steps up to
 about 0.015 tau_d survived every 500 tau_d trial. The largest decay rate of the linearised
@@ -46,6 +46,13 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+
+from knotmm.dynamics.registry import (
+    DEFAULT_MAX_TIMESTEP,
+    DEFAULT_MIN_TIMESTEP,
+    DEFAULT_TIMESTEP,
+    DEFAULT_TOLERANCE,
+)
 
 __all__ = [
     "Integrator",
@@ -85,7 +92,7 @@ class Integrator:
     order = 0
     adaptive = False
 
-    def __init__(self, timestep: float):
+    def __init__(self, timestep: float = DEFAULT_TIMESTEP):
         if not timestep > 0:
             raise ValueError(f"timestep={timestep!r}: must be > 0")
         self.timestep = float(timestep)
@@ -204,10 +211,10 @@ class _Adaptive(Integrator):
 
     def __init__(
         self,
-        timestep: float,
-        tolerance: float = 1e-4,
-        max_timestep: float = 1.0,
-        min_timestep: float = 1e-7,
+        timestep: float = DEFAULT_TIMESTEP,
+        tolerance: float = DEFAULT_TOLERANCE,
+        max_timestep: float = DEFAULT_MAX_TIMESTEP,
+        min_timestep: float = DEFAULT_MIN_TIMESTEP,
     ):
         super().__init__(timestep)
         if not tolerance > 0:
@@ -254,7 +261,8 @@ class RK23(_Adaptive):
     name = "rk23"
     order = 3
 
-    def __init__(self, timestep, tolerance=1e-4, max_timestep=1.0, min_timestep=1e-7):
+    def __init__(self, timestep=DEFAULT_TIMESTEP, tolerance=DEFAULT_TOLERANCE,
+                 max_timestep=DEFAULT_MAX_TIMESTEP, min_timestep=DEFAULT_MIN_TIMESTEP):
         super().__init__(timestep, tolerance, max_timestep, min_timestep)
         self._err_old = 1.0
 
@@ -410,7 +418,8 @@ class RKC2(_Adaptive):
     max_stages = 200
     rho_interval = 25
 
-    def __init__(self, timestep, tolerance=1e-4, max_timestep=1.0, min_timestep=1e-7):
+    def __init__(self, timestep=DEFAULT_TIMESTEP, tolerance=DEFAULT_TOLERANCE,
+                 max_timestep=DEFAULT_MAX_TIMESTEP, min_timestep=DEFAULT_MIN_TIMESTEP):
         super().__init__(timestep, tolerance, max_timestep, min_timestep)
         self.rho: float | None = None
         self._eig: np.ndarray | None = None

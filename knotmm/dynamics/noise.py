@@ -37,6 +37,7 @@ import numpy as np
 import scipy.linalg
 
 from knotmm.dynamics.mobility import rpy_matrix, rpy_velocities
+from knotmm.dynamics.registry import DEFAULT_LANCZOS_TOLERANCE
 from knotmm.errors import ConfigError, SimulationFault
 
 __all__ = [
@@ -164,7 +165,7 @@ def cholesky_noise(positions, rng: np.random.Generator | None = None, xi=None) -
 def lanczos_sqrt(
     matvec: Callable[[np.ndarray], np.ndarray],
     z,
-    tolerance: float = 1e-6,
+    tolerance: float = DEFAULT_LANCZOS_TOLERANCE,
     max_iter: int | None = None,
 ) -> tuple[np.ndarray, int]:
     """Krylov approximation of ``A^(1/2) z`` for a symmetric positive definite ``A``.
@@ -249,7 +250,7 @@ def lanczos_sqrt(
 def lanczos_noise(
     positions,
     rng: np.random.Generator | None = None,
-    tolerance: float = 1e-6,
+    tolerance: float = DEFAULT_LANCZOS_TOLERANCE,
     max_iter: int | None = None,
     xi=None,
 ) -> np.ndarray:
@@ -316,7 +317,8 @@ class NoiseGenerator:
     random stream advances the same way whichever is used.
     """
 
-    def __init__(self, method: str = "auto", tolerance: float = 1e-6, max_iter: int | None = None):
+    def __init__(self, method: str = "auto", tolerance: float = DEFAULT_LANCZOS_TOLERANCE,
+                 max_iter: int | None = None):
         if method not in NOISE_METHODS:
             raise ConfigError(f"run.noise = {method!r}: expected one of {', '.join(NOISE_METHODS)}")
         if not tolerance > 0:

@@ -9,6 +9,14 @@ step, and the engines that have it (``run.engine``: :data:`PYTHON_ENGINE`, the c
 ``run.integrator`` against :data:`NAMES`; :func:`resolve` turns ``"auto"`` and an unset step
 into what a run uses; :func:`make` and :func:`integrator_from_config` build any of them.
 
+It is also the one owner of the integrators' defaults (``DEFAULT_*``: steps, tolerances, step
+bounds, Lanczos tolerance), which the run-file schema, the classes' signatures and the
+plugin read, and of the OpenMM platforms (:data:`PLATFORMS`, :data:`PLUGIN_PLATFORMS`,
+:data:`DEVICE_PLATFORMS`). The help of ``run.integrator``, ``run.timestep`` and
+``run.tolerance`` is written from the table (:func:`integrator_help`, :func:`timestep_help`,
+:func:`tolerance_help`); ``tests/dynamics/test_one_owner.py`` holds the prose copies (the
+README, ``plugin/README.md``, the plugin's docstring and C++ header) to it.
+
 The classes are imported only when one is built (:meth:`IntegratorInfo.load`), so importing
 this module (and :mod:`knotmm.config`) costs no numba or scipy start-up.
 
@@ -44,30 +52,62 @@ __all__ = [
     "BOTH_ENGINES",
     "BROWNIAN_NAMES",
     "DEFAULT_BROWNIAN_TIMESTEP",
+    "DEFAULT_BROWNIAN_TOLERANCE",
+    "DEFAULT_LANCZOS_TOLERANCE",
+    "DEFAULT_LM_TIMESTEP",
+    "DEFAULT_MAX_TIMESTEP",
+    "DEFAULT_MIN_TIMESTEP",
     "DEFAULT_TIMESTEP",
     "DEFAULT_TOLERANCE",
+    "DEVICE_PLATFORMS",
     "NAMES",
+    "PLATFORMS",
     "PLUGIN_ENGINE",
+    "PLUGIN_PLATFORMS",
     "PYTHON_ENGINE",
     "REGISTRY",
     "IntegratorInfo",
     "integrator_from_config",
+    "integrator_help",
     "make",
     "resolve",
     "resolve_tolerance",
+    "timestep_help",
+    "tolerance_help",
 ]
 
 log = logging.getLogger(__name__)
 
 #: The ``run.integrator`` value that lets :func:`resolve` choose.
 AUTO = "auto"
+# The integrators' defaults: the one owner. The schema of ``knotmm.config``, the classes'
+# signatures (:mod:`knotmm.dynamics`) and :class:`knotmm.plugin.RPYIntegrator` read them, and
+# ``tests/dynamics/test_one_owner.py`` holds the compiled plugin's own defaults to them.
 #: Step of deterministic runs when none is given (the first step of an adaptive integrator).
 DEFAULT_TIMESTEP = 0.01
 #: Step of Brownian integrators at finite Pe when none is given (see
 #: :mod:`knotmm.dynamics.brownian`, "Step size").
 DEFAULT_BROWNIAN_TIMESTEP = 0.002
+#: Step of ``leimkuhler_matthews`` at finite Pe when none is given: Boltzmann bond
+#: fluctuations at this step (:class:`knotmm.dynamics.brownian.LeimkuhlerMatthews`).
+DEFAULT_LM_TIMESTEP = 0.01
 #: ``run.tolerance`` of the deterministic adaptive integrators when none is given, in d.
 DEFAULT_TOLERANCE = 1e-4
+#: ``run.tolerance`` of ``ito_heun_adaptive`` up to Pe = 10 when none is given, in d: the
+#: largest that showed no bias against a Metropolis Monte Carlo at Pe = 0.5-10 (0.05
+#: shortened the bond-length spread by 0.9-1.4 % at Pe = 10;
+#: ``benchmarks/validate_brownian_equilibrium.py``); :func:`resolve_tolerance` shrinks it above.
+DEFAULT_BROWNIAN_TOLERANCE = 0.02
+#: Largest step of the adaptive integrators (``run.max_timestep``), in tau_d.
+DEFAULT_MAX_TIMESTEP = 1.0
+#: Smallest step of the adaptive integrators (``run.min_timestep``): below it a run stops.
+DEFAULT_MIN_TIMESTEP = 1e-7
+#: Lanczos noise: relative change between successive iterates at which to stop
+#: (``run.lanczos_tolerance``; :class:`knotmm.dynamics.noise.NoiseGenerator`).
+DEFAULT_LANCZOS_TOLERANCE = 1e-6
+#: What ``"auto"`` is at ``Pe = inf``, and instead for a stiff chain (:func:`auto_deterministic`).
+AUTO_DETERMINISTIC = "rk23"
+AUTO_STIFF = "rkc2"
 #: What ``"auto"`` is at a finite Peclet number: adaptive steps survive the close steric
 #: contacts that break fixed steps at Pe <~ 1 (``benchmarks/README.md``, issue 20).
 AUTO_BROWNIAN = "ito_heun_adaptive"
@@ -78,6 +118,15 @@ _BROWNIAN_STEP_WARNING = 0.01
 PYTHON_ENGINE = "python"
 PLUGIN_ENGINE = "plugin"
 BOTH_ENGINES = (PYTHON_ENGINE, PLUGIN_ENGINE)
+#: The OpenMM platforms the compiled plugin has a kernel for (the CPU platform shares the
+#: Reference kernel; ``registerRPYKernelFactories`` in ``plugin/platforms/reference``, which
+#: ``tests/dynamics/test_one_owner.py`` holds to this).
+PLUGIN_PLATFORMS = ("Reference", "CPU")
+#: The device platforms, best first: ``run.platform = "auto"`` may take one for the Python
+#: engine (:func:`knotmm.engine.engines.auto_platform`).
+DEVICE_PLATFORMS = ("CUDA", "HIP", "OpenCL")
+#: Every OpenMM platform a run may name (``run.platform``, besides ``"auto"``).
+PLATFORMS = (*PLUGIN_PLATFORMS, *DEVICE_PLATFORMS)
 
 
 @dataclass(frozen=True)
@@ -164,7 +213,7 @@ REGISTRY: dict[str, IntegratorInfo] = {
             "leimkuhler_matthews", _BROWN, "LeimkuhlerMatthews", 1, False, True,
             "Leimkuhler-Matthews, fixed step, one velocity a step; Boltzmann bond "
             "fluctuations at 0.01 tau_d; breaks down at close contacts at Pe <~ 1",
-            0.01, engines=BOTH_ENGINES,
+            DEFAULT_LM_TIMESTEP, engines=BOTH_ENGINES,
         ),
         IntegratorInfo(
             "euler_maruyama", _BROWN, "EulerMaruyama", 1, False, True,
@@ -176,7 +225,8 @@ REGISTRY: dict[str, IntegratorInfo] = {
             True, True,
             "Euler-Heun pair, adaptive step (PI control, rejected noise kept by Brownian "
             "bridges); survives close steric contacts at Pe <= 1; the default at finite Pe",
-            DEFAULT_BROWNIAN_TIMESTEP, engines=BOTH_ENGINES, default_tolerance=0.02,
+            DEFAULT_BROWNIAN_TIMESTEP, engines=BOTH_ENGINES,
+            default_tolerance=DEFAULT_BROWNIAN_TOLERANCE,
         ),
     )
 }
@@ -207,7 +257,7 @@ AUTO_STIFFNESS = 100.0
 
 def auto_deterministic(stiffness: float) -> str:
     """The deterministic integrator ``"auto"`` picks for a chain of this stiffness (1/tau_d)."""
-    return "rkc2" if float(stiffness) > AUTO_STIFFNESS else "rk23"
+    return AUTO_STIFF if float(stiffness) > AUTO_STIFFNESS else AUTO_DETERMINISTIC
 
 
 def resolve(integrator: str, peclet: float, timestep: float | None) -> tuple[str, float]:
@@ -245,7 +295,7 @@ def resolve(integrator: str, peclet: float, timestep: float | None) -> tuple[str
         For a name that is not registered.
     """
     finite = math.isfinite(float(peclet))
-    name = (AUTO_BROWNIAN if finite else "rk23") if integrator == AUTO else integrator
+    name = (AUTO_BROWNIAN if finite else AUTO_DETERMINISTIC) if integrator == AUTO else integrator
     info = _info(name)
     if timestep is None:
         timestep = info.default_timestep if finite else DEFAULT_TIMESTEP
@@ -283,6 +333,50 @@ def resolve_tolerance(name: str, tolerance: float | None, peclet: float = math.i
     return info.default_tolerance
 
 
+def _listing(names) -> str:
+    """``"a, b and c"``."""
+    names = list(names)
+    return " and ".join(filter(None, (", ".join(names[:-1]), names[-1])))
+
+
+def integrator_help() -> str:
+    """The help of ``run.integrator`` (:data:`knotmm.config.SCHEMA`), written from the table.
+
+    ``"auto"`` and its policy, then every entry in :data:`REGISTRY`'s order with its
+    description (and its default step if it has a fixed one), the deterministic ones first.
+    """
+    def entry(info: IntegratorInfo) -> str:
+        step = "" if info.adaptive else f"; timestep {info.default_timestep:g}"
+        return f"{info.name} ({info.description}{step})"
+
+    deterministic = ", ".join(entry(i) for i in REGISTRY.values() if not i.brownian)
+    brownian = ", ".join(entry(i) for i in REGISTRY.values() if i.brownian)
+    return (f"time stepper: {AUTO} (the default: {AUTO_DETERMINISTIC} at run.peclet = inf, or "
+            f"{AUTO_STIFF} when the chain is stiff; {AUTO_BROWNIAN} at finite Pe); "
+            f"run.peclet = inf: {deterministic}; finite run.peclet: {brownian}")
+
+
+def timestep_help() -> str:
+    """The help of ``run.timestep``, with the defaults of :func:`resolve`."""
+    steps: dict[float, list[str]] = {}
+    for info in REGISTRY.values():
+        if info.brownian:
+            steps.setdefault(info.default_timestep, []).append(info.name)
+    finite = ", ".join(f"{h:g} for {_listing(names)}" for h, names in steps.items())
+    return ("step in tau_d (fixed-step and Brownian integrators); the first step of an adaptive "
+            f"one; default {DEFAULT_TIMESTEP:g} (at finite run.peclet: {finite})")
+
+
+def tolerance_help() -> str:
+    """The help of ``run.tolerance``, with the defaults of :func:`resolve_tolerance`."""
+    brownian = "; ".join(
+        f"{i.name}: {i.default_tolerance:g}, times ({BROWNIAN_TOLERANCE_PECLET:g} / Pe)^"
+        f"{BROWNIAN_TOLERANCE_EXPONENT:g} above Pe = {BROWNIAN_TOLERANCE_PECLET:g}, at least "
+        f"{DEFAULT_TOLERANCE:g}" for i in REGISTRY.values() if i.adaptive and i.brownian)
+    return (f"adaptive integrators: local error per step, in d; default {DEFAULT_TOLERANCE:g} "
+            f"({brownian})")
+
+
 def make(
     name: str,
     timestep: float,
@@ -290,10 +384,10 @@ def make(
     peclet: float = math.inf,
     seed: int | None = None,
     noise="auto",
-    lanczos_tolerance: float = 1e-6,
+    lanczos_tolerance: float = DEFAULT_LANCZOS_TOLERANCE,
     tolerance: float | None = None,
-    max_timestep: float = 1.0,
-    min_timestep: float = 1e-7,
+    max_timestep: float = DEFAULT_MAX_TIMESTEP,
+    min_timestep: float = DEFAULT_MIN_TIMESTEP,
 ):
     """Build a registered integrator by name.
 
@@ -388,12 +482,13 @@ def integrator_from_config(cfg: Mapping):
     if REGISTRY[name].brownian and math.isfinite(peclet) and timestep > _BROWNIAN_STEP_WARNING:
         log.warning(
             "run.timestep = %g with run.peclet = %g: above ~%g tau_d the stiff bond "
-            "modes are unstable or strongly biased (%g is a good step for ito_heun, 0.01 "
+            "modes are unstable or strongly biased (%g is a good step for ito_heun, %g "
             "for leimkuhler_matthews)",
             timestep,
             peclet,
             _BROWNIAN_STEP_WARNING,
             DEFAULT_BROWNIAN_TIMESTEP,
+            DEFAULT_LM_TIMESTEP,
         )
     return make(
         name,

@@ -5,7 +5,7 @@ one thread (``Threads = 1``): a force evaluation of knotmm's System makes four h
 when the neighbour list is rebuilt, each a wake-up of the pool's thread and one of the caller.
 When the two threads sit on different cores, each wake-up is a cross-core one, and on a
 virtual machine whose other core is idle it costs tens of microseconds
-(``benchmarks/README.md``, "OpenMM's cost per force call"). :class:`CorePin` puts the pool's
+(``benchmarks/README.md``, ``bench_forces.py layouts``). :class:`CorePin` puts the pool's
 threads and the calling thread on one core for the span of a stretch of steps, so the
 hand-offs become switches on one core. Only where threads run changes: results are the same
 bit for bit. Linux only; elsewhere, or if the affinity calls fail, it does nothing; the

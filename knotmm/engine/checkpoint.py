@@ -45,9 +45,7 @@ from knotmm.io.atomic import write_atomic
 
 __all__ = [
     "CheckpointReporter",
-    "load_checkpoint",
     "read_checkpoint",
-    "save_checkpoint",
     "write_checkpoint",
 ]
 
@@ -135,16 +133,6 @@ def read_checkpoint(path) -> dict:
     if out["velocity"] is not None and out["velocity"].shape != shape:
         out["velocity"] = None
     return out
-
-
-def save_checkpoint(path, simulation, counters: dict) -> None:
-    """``simulation.saveCheckpoint(path, counters)`` (the function form)."""
-    simulation.saveCheckpoint(path, counters)
-
-
-def load_checkpoint(path) -> dict:
-    """:func:`read_checkpoint` (the function form; nothing is restored)."""
-    return read_checkpoint(path)
 
 
 class CheckpointReporter(TimeScheduled):

@@ -13,7 +13,7 @@
   plugin too (its Cholesky is LAPACK's, as the Python engine's, and its step has no Python
   round trips: T(2,3), N = 90, Pe = 2, CPU time per step 1.12 against 1.68 ms with ito_heun
   at dt = 0.002 and 0.96 against 1.69 ms with leimkuhler_matthews at 0.01,
-  ``benchmarks/bench_brownian_step.py``), whether the noise is Cholesky's or Lanczos's
+  ``benchmarks/bench_steps.py brownian``), whether the noise is Cholesky's or Lanczos's
   (``run.noise``; ``"auto"`` is Lanczos above 300 beads): the plugin has both.
 
 A plugin that was built but cannot be used as it is (compiled against another OpenMM than the
@@ -32,7 +32,7 @@ the same statistics.
 
 ``run.platform = "auto"`` (:func:`auto_platform`) is decided after the engine, for it: the CPU
 platform (Reference where OpenMM has no CPU platform), unless the engine can use a device
-platform (the Python engine: the plugin has kernels only for Reference and CPU), the chain
+platform (the Python engine: the plugin has kernels only for :data:`PLUGIN_PLATFORMS`), the chain
 has at least :data:`DEVICE_MIN_BEADS` beads, and a device platform is real
 (:func:`device_properties`): CUDA or HIP with a device, or an OpenCL implementation that
 OpenMM supports (NVIDIA, AMD, Apple, Intel: the vendors OpenMM itself does not warn about)
@@ -73,10 +73,10 @@ PLUGIN = registry.PLUGIN_ENGINE
 PYTHON = registry.PYTHON_ENGINE
 #: The ``run.engine`` values.
 ENGINES = ("auto", PLUGIN, PYTHON)
-#: OpenMM platforms the plugin has a kernel for (CPU shares the Reference kernel).
-PLUGIN_PLATFORMS = ("Reference", "CPU")
-#: Device platforms ``run.platform = "auto"`` may take for the Python engine, best first.
-DEVICE_PLATFORMS = ("CUDA", "HIP", "OpenCL")
+#: OpenMM platforms the plugin has a kernel for, and the device platforms ``run.platform =
+#: "auto"`` may take for the Python engine, best first: the registry's (the one owner).
+PLUGIN_PLATFORMS = registry.PLUGIN_PLATFORMS
+DEVICE_PLATFORMS = registry.DEVICE_PLATFORMS
 #: Beads from which ``run.platform = "auto"`` considers a device platform.
 DEVICE_MIN_BEADS = 2000
 #: OpenCL platform vendors OpenMM supports (``OpenCLContext``'s ``isSupported``: any other
@@ -111,8 +111,10 @@ def make_engine(name: str, integrator, threads: int = 1, n_beads: int | None = N
     if name not in _ENGINE_CLASSES:
         raise ConfigError(f"engine = {name!r}: expected {PYTHON!r} or {PLUGIN!r}")
     module, cls = _ENGINE_CLASSES[name]
-    return getattr(importlib.import_module(module), cls)(integrator, threads=threads,
-                                                         n_beads=n_beads)
+    engine = getattr(importlib.import_module(module), cls)
+    if name == PLUGIN:
+        return engine(integrator, threads=threads, n_beads=n_beads)
+    return engine(integrator)
 
 
 def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
@@ -194,7 +196,7 @@ def auto_platform(n_beads: int, engine: str, available: list[str] | None = None,
     n_beads : int
         The run's beads.
     engine : {"plugin", "python"}
-        The engine chosen (:func:`resolve_engine`); the plugin only runs on Reference and CPU.
+        The engine chosen (:func:`resolve_engine`); the plugin runs on :data:`PLUGIN_PLATFORMS`.
     available : list of str, optional
         OpenMM's platform names; default :func:`platform_names`.
     probe : callable, optional

@@ -30,7 +30,6 @@ __all__ = [
     "raise_if_requested",
     "request_stop",
     "stop_between_steps",
-    "stop_requested",
     "stop_signal",
 ]
 
@@ -56,11 +55,6 @@ def describe_signal(name: str | None) -> str:
     if name is None:
         return "a stop request"
     return f"{name} (Ctrl-C)" if name == "SIGINT" else name
-
-
-def stop_requested() -> bool:
-    """Whether a signal has asked the running simulation to stop at its next step boundary."""
-    return _requested.is_set()
 
 
 def stop_signal() -> str | None:

@@ -29,10 +29,8 @@ class PythonEngine(Engine):
     Parameters
     ----------
     integrator : knotmm.dynamics.deterministic.Integrator
-        Steps the run; its ``timestep`` and ``n_rejected`` are the engine's.
-    threads, n_beads : int, optional
-        Unused (the signature of :func:`knotmm.engine.engines.make_engine`): the RPY pair
-        loop's threads are the Simulation's ``mobility_threads``.
+        Steps the run; its ``timestep`` and ``n_rejected`` are the engine's (the RPY pair
+        loop's threads are the Simulation's ``mobility_threads``).
 
     Attributes
     ----------
@@ -42,7 +40,7 @@ class PythonEngine(Engine):
 
     name = "python"
 
-    def __init__(self, integrator, threads: int = 1, n_beads: int | None = None):
+    def __init__(self, integrator):
         super().__init__(integrator)
         self.openmm_integrator = openmm.VerletIntegrator(integrator.timestep)
         # After a refused state the integrator holds the velocity of that state, not of the

@@ -13,15 +13,13 @@ from __future__ import annotations
 
 import csv
 import math
-import struct
-import sys
-import time
 
 import numpy as np
-import openmm.app
 
 from knotmm.engine.schedule import TimeScheduled
+from knotmm.io.dcd import DCDWriter
 from knotmm.io.observables import ENERGY_TERMS, OBSERVABLE_COLUMNS
+from knotmm.progress import Progress
 
 __all__ = [
     "DCDReporter",
@@ -53,11 +51,10 @@ class _FileReporter(TimeScheduled):
 class DCDReporter(_FileReporter):
     """Write frames to a DCD file in Angstrom (1 d = 10 A), without a unit cell.
 
-    Frame ``k`` is the state at ``t = k * interval``. OpenMM's ``DCDFile`` writes (or, for
-    resumed runs, ``append=True``, checks) the header; frames are written here, byte for byte
-    what ``DCDFile.writeModel`` writes (header frame count and last step, then the x, y, z
-    records in float32 Angstrom), at a tenth of its cost. ``first_index``: frames already in
-    the file.
+    Frame ``k`` is the state at ``t = k * interval``, written by
+    :class:`knotmm.io.dcd.DCDWriter` (the one DCD writer: OpenMM's ``DCDFile`` header, or for
+    resumed runs, ``append=True``, its check; frames byte for byte what
+    ``DCDFile.writeModel`` writes). ``first_index``: frames already in the file.
 
     Parameters
     ----------
@@ -80,37 +77,14 @@ class DCDReporter(_FileReporter):
         self._file = open(self.path, "r+b" if append else "wb")
         if append:
             self._file.seek(0, 2)
-        # The header's time step is the frame interval (tau_d read as ps): one "step" per frame.
-        openmm.app.DCDFile(self._file, topology, self.interval, firstStep=0, interval=1,
-                           append=append)
-        self._frames = 0
-        if append:  # DCDFile checked the header; its frame count is at byte 8
-            self._file.seek(8, 0)
-            self._frames = struct.unpack("<i", self._file.read(4))[0]
-            self._file.seek(0, 2)
-        self._n_atoms = topology.getNumAtoms()
-        self._marker = struct.pack("<i", 4 * self._n_atoms)
+        self._dcd = DCDWriter(self._file, topology, self.interval, append=append)
 
     def report(self, simulation, state) -> None:
         self._written(lambda: self._write_frame(simulation.positions))
 
     def _write_frame(self, positions) -> None:
-        """Append one frame (positions in d, shape (n_beads, 3)) as ``DCDFile.writeModel``."""
-        xyz = 10.0 * np.asarray(positions, dtype=np.float64).T  # Angstrom, float64 as OpenMM
-        if xyz.shape != (3, self._n_atoms):
-            raise ValueError(f"positions: expected shape ({self._n_atoms}, 3), got {xyz.T.shape}")
-        if not np.all(np.isfinite(xyz)):
-            raise ValueError("positions: a frame with non-finite coordinates cannot be written")
-        xyz = xyz.astype("<f4")
-        self._frames += 1
-        f, marker = self._file, self._marker
-        f.seek(8, 0)
-        f.write(struct.pack("<i", self._frames))  # frame count
-        f.seek(20, 0)
-        f.write(struct.pack("<i", self._frames - 1))  # last step (first 0, one per frame)
-        f.seek(0, 2)
-        f.write(b"".join((marker, xyz[0].tobytes(), marker, marker, xyz[1].tobytes(), marker,
-                          marker, xyz[2].tobytes(), marker)))
+        """Append one frame (positions in d, shape (n_beads, 3))."""
+        self._dcd.write(positions)
 
 
 class ObservablesReporter(_FileReporter):
@@ -145,7 +119,12 @@ class ObservablesReporter(_FileReporter):
 
 
 class ProgressReporter(TimeScheduled):
-    """Progress over simulated time: a bar (tqdm) on a terminal, else a line now and then.
+    """Progress over simulated time, shown by :class:`knotmm.progress.Progress`.
+
+    A bar (tqdm) on a terminal, else one line (``knotmm: t = 20 / 200 tau_d (10 %), ...``)
+    each time another 10 % of the run is done or :attr:`Progress.line_seconds
+    <knotmm.progress.Progress.line_seconds>` have passed since the last line: the display of
+    every long command; this reporter only tells it the simulated time.
 
     Parameters
     ----------
@@ -155,72 +134,29 @@ class ProgressReporter(TimeScheduled):
         How often progress is looked at, in tau_d; default (end - start) / 200.
     enabled : bool, optional
         True: always a bar; False: nothing; None (default): a bar when ``stream`` is a
-        terminal, else one line (``knotmm: t = 20 / 200 tau_d (10 %), ...``) each time
-        another 10 % of the run is done or 30 s have passed since the last line.
+        terminal, else lines.
     stream : file, optional
         Default: standard error.
     """
 
-    #: Seconds between two progress lines, at most (when no 10 % step comes sooner).
-    line_seconds = 30.0
-
     def __init__(self, start: float, end: float, interval: float | None = None,
                  enabled: bool | None = None, stream=None):
-        stream = sys.stderr if stream is None else stream
         interval = interval or max((end - start) / 200.0, 1e-12)
         super().__init__(interval, int(math.floor(start / interval + 1e-9)) + 1)
         self.start = start
         self.end = end
-        self._bar = None
-        self._stream = None
-        terminal = hasattr(stream, "isatty") and stream.isatty()
-        if enabled or (enabled is None and terminal):
-            from tqdm import tqdm
-
-            self._bar = tqdm(
-                total=round(end - start, 6),
-                initial=0,
-                unit="tau_d",
-                file=stream,
-                dynamic_ncols=True,
-                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} tau_d [{elapsed}<{remaining}]",
-            )
-        elif enabled is None:
-            self._stream = stream
-            self._wall0 = self._last_line = time.monotonic()
-            self._tenths = 0
-        self._shown = 0.0
-
-    def report(self, simulation, state) -> None:
-        done = min(simulation.time, self.end) - self.start
-        if self._bar is not None:
-            self._bar.update(done - self._shown)
-            self._shown = done
-        elif self._stream is not None and self.end > self.start:
-            self._line(done)
-        self.advance()
-
-    def _line(self, done: float) -> None:
-        now = time.monotonic()
-        fraction = done / (self.end - self.start)
-        tenths = int(math.floor(fraction * 10 + 1e-9))
-        if tenths <= self._tenths and now - self._last_line < self.line_seconds:
-            return
-        self._tenths = max(self._tenths, tenths)
-        self._last_line = now
-        elapsed = now - self._wall0
-        left = f", about {elapsed * (1 - fraction) / fraction:.0f} s left" if fraction > 0 else ""
-        print(
-            f"knotmm: t = {self.start + done:g} / {self.end:g} tau_d ({100 * fraction:.0f} %), "
-            f"{elapsed:.0f} s{left}",
-            file=self._stream,
-            flush=True,
+        self.progress = Progress(
+            end - start, "", "tau_d", enabled=enabled, stream=stream, label="t = ",
+            origin=start,
+            bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} tau_d [{elapsed}<{remaining}]",
         )
 
+    def report(self, simulation, state) -> None:
+        self.progress.update_to(min(simulation.time, self.end) - self.start)
+        self.advance()
+
     def close(self) -> None:
-        if self._bar is not None:
-            self._bar.close()
-            self._bar = None
+        self.progress.close()
 
 
 class KnotTypeWatch(TimeScheduled):

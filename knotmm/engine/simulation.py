@@ -44,6 +44,7 @@ from knotmm.dynamics.deterministic import RK23, Integrator
 from knotmm.engine.affinity import CorePin
 from knotmm.engine.checkpoint import read_checkpoint, write_checkpoint
 from knotmm.engine.engines import (
+    DEVICE_PLATFORMS,
     PYTHON,
     auto_platform,
     make_engine,
@@ -84,7 +85,7 @@ def select_platform(name: str, n_beads: int, threads: int = 1, engine: str = PYT
     properties = {}
     if name == "CPU":
         properties["Threads"] = str(int(threads))
-    elif name in ("CUDA", "OpenCL", "HIP"):
+    elif name in DEVICE_PLATFORMS:
         properties["Precision"] = "mixed"
     properties.update(pinned)
     return platform, properties
@@ -218,7 +219,8 @@ class Simulation:
 
     @classmethod
     def from_config(
-        cls, cfg, positions=None, engine: str | None = None, layout: ChainLayout | None = None
+        cls, cfg, positions=None, engine: str | None = None, layout: ChainLayout | None = None,
+        integrator: Integrator | None = None,
     ) -> Simulation:
         """The Simulation a run configuration describes.
 
@@ -236,15 +238,20 @@ class Simulation:
         layout : ChainLayout, optional
             The chains of ``positions``; default: those of the template (one ring for a
             knot).
+        integrator : Integrator, optional
+            A fresh integrator for the run (the run plan's, :mod:`knotmm.plan`, which built it
+            once from ``cfg``); default: built here from ``cfg``'s ``[run]`` table
+            (:func:`knotmm.dynamics.registry.integrator_from_config`).
 
         Raises
         ------
         ConfigError, TemplateError
             A bad integrator, platform or template; nothing is written.
         """
-        from knotmm.dynamics.registry import integrator_from_config
+        if integrator is None:
+            from knotmm.dynamics.registry import integrator_from_config
 
-        integrator = integrator_from_config(cfg)
+            integrator = integrator_from_config(cfg)
         if positions is None:
             from knotmm.shapes.builder import build_template
 

@@ -7,7 +7,9 @@ a partial frame at its end. :func:`dcd_layout` is the one place where that is me
 resuming a run (:func:`truncate_dcd`), loading one (:func:`read_dcd`) and reading a start
 frame from a file (:mod:`knotmm.io.structure`) all use it.
 
-Coordinates in a knotmm DCD are in Angstrom (1 d = 10 A); this module does not convert.
+Coordinates in a knotmm DCD are in Angstrom (1 d = 10 A). :class:`DCDWriter` is the one
+writer of knotmm DCD files (a run's :class:`knotmm.engine.reporters.DCDReporter`,
+:func:`write_dcd` for the orbit's files): it converts from d, once, as it writes a frame.
 
 Every DCD opened through mdtraj is opened here, by :func:`c_path`: mdtraj's
 ``DCDTrajectoryFile`` takes its file name as a C ``char*`` and converts a ``str`` with the
@@ -30,9 +32,11 @@ from pathlib import Path
 import numpy as np
 
 from knotmm.errors import TrajectoryFileError
+from knotmm.units import d_to_angstrom
 
 __all__ = [
     "DCDLayout",
+    "DCDWriter",
     "c_path",
     "dcd_layout",
     "quiet_c_stdout",
@@ -233,34 +237,91 @@ def read_dcd(path) -> tuple[np.ndarray, list[str]]:
     return np.asarray(xyz), notes
 
 
-def write_dcd(path, positions) -> None:
-    """Write frames to a new DCD file in Angstrom (1 d = 10 A), without a unit cell.
+class DCDWriter:
+    """Frames appended to a DCD file in Angstrom (1 d = 10 A), without a unit cell.
+
+    OpenMM's ``DCDFile`` writes (or, with ``append=True``, checks) the header; frames are
+    written here, byte for byte what ``DCDFile.writeModel`` writes (header frame count and
+    last step, then the x, y, z records in float32 Angstrom), at a tenth of its cost.
+
+    Parameters
+    ----------
+    file : binary file
+        Opened ``"wb"``, or ``"r+b"`` and positioned at its end with ``append=True``; the
+        caller closes it.
+    topology : openmm.app.Topology
+        Topology of the beads (no periodic box).
+    interval : float
+        Time between frames, in tau_d: the header's time step (tau_d read as ps), one
+        "step" per frame.
+    append : bool
+        Add frames to a file that has some already (its header is checked).
+    """
+
+    def __init__(self, file, topology, interval: float, append: bool = False):
+        import openmm.app  # noqa: PLC0415 - heavy import kept out of module import
+
+        if topology.getUnitCellDimensions() is not None:
+            raise ValueError("topology: has a periodic box; knotmm writes DCD frames without "
+                             "a unit cell (knotmm's chains are not periodic)")
+        self.file = file
+        openmm.app.DCDFile(file, topology, interval, firstStep=0, interval=1, append=append)
+        self.frames = 0
+        if append:  # DCDFile checked the header; its frame count is at byte 8
+            file.seek(8, 0)
+            self.frames = struct.unpack("<i", file.read(4))[0]
+            file.seek(0, 2)
+        self.n_atoms = topology.getNumAtoms()
+        self._marker = struct.pack("<i", 4 * self.n_atoms)
+
+    def write(self, positions) -> None:
+        """Append one frame (positions in d, shape (n_atoms, 3)) as ``DCDFile.writeModel``."""
+        xyz = d_to_angstrom(np.asarray(positions, dtype=np.float64).T)  # float64 as OpenMM
+        if xyz.shape != (3, self.n_atoms):
+            raise ValueError(f"positions: expected shape ({self.n_atoms}, 3), got {xyz.T.shape}")
+        if not np.all(np.isfinite(xyz)):
+            raise ValueError("positions: a frame with non-finite coordinates cannot be written")
+        xyz = xyz.astype("<f4")
+        self.frames += 1
+        f, marker = self.file, self._marker
+        f.seek(8, 0)
+        f.write(struct.pack("<i", self.frames))  # frame count
+        f.seek(20, 0)
+        f.write(struct.pack("<i", self.frames - 1))  # last step (first 0, one per frame)
+        f.seek(0, 2)
+        f.write(b"".join((marker, xyz[0].tobytes(), marker, marker, xyz[1].tobytes(), marker,
+                          marker, xyz[2].tobytes(), marker)))
+
+
+def write_dcd(path, positions, interval: float = 1.0) -> None:
+    """Write frames to a new DCD file with :class:`DCDWriter`, as a run writes its own.
 
     Parameters
     ----------
     path : str or Path
         File to write (replaced atomically).
     positions : array_like, shape (n_frames, n_beads, 3), in d
+    interval : float
+        Time between frames, in tau_d (the header's time step).
 
     Raises
     ------
     OSError
         If the file cannot be written.
     """
-    from mdtraj.formats import DCDTrajectoryFile
-
-    from knotmm.units import d_to_angstrom
+    from knotmm.model.topology import bead_topology  # noqa: PLC0415
 
     path = Path(path)
     x = np.asarray(positions, dtype=np.float64)
     if x.ndim != 3 or x.shape[-1] != 3:
         raise ValueError(f"positions: expected shape (n_frames, n_beads, 3), got {x.shape}")
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".dcd")
-    os.close(fd)
     try:
-        os.unlink(tmp)  # mdtraj refuses to overwrite
-        with quiet_c_stdout(), DCDTrajectoryFile(c_path(tmp), "w") as fh:
-            fh.write(d_to_angstrom(x).astype(np.float32))
+        with os.fdopen(fd, "wb") as fh:
+            # only the atom count of the Topology enters a DCD file
+            writer = DCDWriter(fh, bead_topology(x.shape[1], closed=False), interval)
+            for frame in x:
+                writer.write(frame)
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):

@@ -31,14 +31,11 @@ import numpy as np
 from knotmm.io.atomic import replacing
 from knotmm.model.layout import ChainLayout
 from knotmm.model.topology import bead_topology
-from knotmm.units import ANGSTROM_PER_D
+from knotmm.units import d_to_mdtraj
 
 __all__ = ["mdtraj_topology", "read_layout", "write_pdb"]
 
 logger = logging.getLogger(__name__)
-
-# mdtraj keeps coordinates in nm; a PDB file holds Angstrom.
-_NM_PER_ANGSTROM = 0.1
 
 
 def mdtraj_topology(n_beads: int | ChainLayout, closed: bool = True):
@@ -151,8 +148,7 @@ def write_pdb(path, positions, closed: bool = True, layout: ChainLayout | None =
             f"positions has {n_beads} beads, the chains ({layout.describe()}) {layout.n_beads}"
         )
     top = mdtraj_topology(layout)
-    xyz_nm = x * ANGSTROM_PER_D * _NM_PER_ANGSTROM
-    traj = mdtraj.Trajectory(xyz_nm, top)  # no unit cell
+    traj = mdtraj.Trajectory(d_to_mdtraj(x), top)  # no unit cell
     path = Path(path)
     with replacing(path) as tmp:  # whole or not at all
         traj.save_pdb(os.fspath(tmp))

@@ -31,15 +31,12 @@ from knotmm.config import read_toml
 from knotmm.errors import ConfigError, TrajectoryFileError
 from knotmm.io.dcd import read_dcd
 from knotmm.io.rundir import RUN_FILE, TOPOLOGY_FILE, TRAJECTORY_FILE
-from knotmm.units import ANGSTROM_PER_D, PS_PER_TAU, angstrom_to_d
+from knotmm.model.layout import ChainLayout
+from knotmm.units import PS_PER_TAU, angstrom_to_d, d_to_mdtraj
 
 __all__ = ["RunData", "load_run", "config_value"]
 
 logger = logging.getLogger(__name__)
-
-
-#: nm per Angstrom (mdtraj keeps coordinates in nm and writes Angstrom to DCD and PDB files).
-_NM_PER_ANGSTROM = 0.1
 
 
 @dataclass(repr=False)
@@ -103,7 +100,7 @@ class RunData:
             raise ValueError(f"positions has shape {x.shape}: expected (n_frames, n_beads, 3) in d")
         n = x.shape[1]
         if bonds is None:
-            bonds = np.c_[np.arange(n), (np.arange(n) + 1) % n]
+            bonds = ChainLayout.ring(n).bonds()
         times = np.arange(x.shape[0]) * float(frame_interval)
         return cls(
             times, x, np.asarray(bonds, dtype=int), dict(config or {}), float(frame_interval)
@@ -189,7 +186,7 @@ class RunData:
         pairs = sorted({tuple(sorted(map(int, b))) for b in np.asarray(self.bonds).reshape(-1, 2)})
         for i, j in pairs:
             top.add_bond(atoms[i], atoms[j])
-        xyz_nm = x * ANGSTROM_PER_D * _NM_PER_ANGSTROM
+        xyz_nm = d_to_mdtraj(x)
         return mdtraj.Trajectory(
             xyz_nm, top, time=np.asarray(self.times, dtype=np.float64) * PS_PER_TAU
         )
@@ -268,7 +265,7 @@ def _check_interval(value, what: str) -> float:
 
 def _ring_notes(bonds: np.ndarray, n: int, top: Path) -> list[str]:
     pairs = {tuple(sorted(map(int, b))) for b in bonds}
-    ring = {tuple(sorted((i, (i + 1) % n))) for i in range(n)}
+    ring = {tuple(sorted(map(int, b))) for b in ChainLayout.ring(n).bonds()}
     missing = ring - pairs
     if not pairs:
         return [
@@ -388,7 +385,7 @@ def load_run(path, frame_interval: float | None = None, topology=None) -> RunDat
     bonds = np.array([[b[0].index, b[1].index] for b in top.bonds], dtype=int).reshape(-1, 2)
     notes += _ring_notes(bonds, n_beads, top_path)
     if bonds.size == 0:
-        bonds = np.c_[np.arange(n_beads), (np.arange(n_beads) + 1) % n_beads]
+        bonds = ChainLayout.ring(n_beads).bonds()
 
     duration = config_value(config, "run.duration")
     if duration is not None:

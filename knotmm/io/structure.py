@@ -27,7 +27,7 @@ from knotmm.errors import TemplateError, TrajectoryFileError
 from knotmm.io.dcd import c_path, dcd_layout, quiet_c_stdout
 from knotmm.io.rundir import TOPOLOGY_FILE, TRAJECTORY_FILE
 from knotmm.model.layout import ChainLayout
-from knotmm.units import angstrom_to_d
+from knotmm.units import angstrom_to_d, mdtraj_to_angstrom
 
 __all__ = ["Structure", "read_structure", "ring_closed", "several_chains"]
 
@@ -188,7 +188,7 @@ def _read_pdb(mdtraj, path: Path, frame, names):
     if traj.n_atoms == 0:
         raise TrajectoryFileError(f"{names['path']}={str(path)!r} holds no atoms")
     index = _frame_index(frame, traj.n_frames, path, names)
-    return traj.xyz[index] * 10.0, traj.topology, traj.n_frames, index  # mdtraj keeps nm
+    return mdtraj_to_angstrom(traj.xyz[index]), traj.topology, traj.n_frames, index
 
 
 def _read_dcd(mdtraj, path: Path, frame, topology, names):

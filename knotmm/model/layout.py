@@ -311,6 +311,22 @@ class ChainLayout:
             parts.append(start + np.stack([i, (i + 1) % n], axis=1))
         return np.concatenate(parts).astype(np.int64)
 
+    def bond_lengths(self, positions) -> np.ndarray:
+        """Length of every bond of :meth:`bonds`, in its order, in d.
+
+        Parameters
+        ----------
+        positions : array_like, shape (n_beads, 3)
+            In d.
+
+        Returns
+        -------
+        ndarray, shape (n_bonds,)
+        """
+        x = np.asarray(positions, dtype=np.float64)
+        pairs = self.bonds()
+        return np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1)
+
     def angles(self) -> np.ndarray:
         """Bending triples ``(previous, bead, next)``: every bead of a ring, the inner beads
         of an open chain.

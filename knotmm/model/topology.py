@@ -13,28 +13,16 @@ directories all use :func:`bead_topology`; see ``docs/architecture.md``.
 
 from __future__ import annotations
 
-import numpy as np
 import openmm.app
 
 from knotmm.model.layout import ChainLayout
 
-__all__ = ["BEAD_ATOM", "BEAD_RESIDUE", "bead_topology", "ring_bonds"]
+__all__ = ["BEAD_ATOM", "BEAD_RESIDUE", "bead_topology"]
 
 #: Residue name of a bead (non-standard, so that mdtraj writes CONECT records).
 BEAD_RESIDUE = "BEA"
 #: Atom name of a bead.
 BEAD_ATOM = "B"
-
-
-def ring_bonds(n_beads: int) -> np.ndarray:
-    """Bonded pairs of a ring: ``(i, i+1)`` and the closure ``(N-1, 0)``.
-
-    Returns
-    -------
-    ndarray, shape (n_beads, 2), int
-    """
-    i = np.arange(n_beads)
-    return np.stack([i, (i + 1) % n_beads], axis=1)
 
 
 def bead_topology(n_beads: int | ChainLayout, closed: bool = True) -> openmm.app.Topology:

@@ -4,9 +4,10 @@
 ``openmm.app.Simulation`` like any OpenMM integrator. Inside a step the plugin asks the Context
 for forces in C++, applies the overlap-corrected Rotne-Prager-Yamakawa mobility
 (:mod:`knotmm.dynamics.mobility`'s formulas) and moves the beads, so a step never returns to
-Python. The methods are those of :mod:`knotmm.dynamics.deterministic` and
-:mod:`knotmm.dynamics.brownian`, formula for formula (the tests in ``tests/plugin`` hold the
-plugin to them):
+Python. The methods are those of :mod:`knotmm.dynamics.deterministic`,
+:mod:`knotmm.dynamics.brownian` and :mod:`knotmm.dynamics.adaptive_brownian`, formula for
+formula (the tests in ``tests/plugin`` hold the plugin to them, and a test in
+``tests/dynamics`` holds this table to the registry and to :data:`METHODS`):
 
 ======================= ===== ========= ==========================================================
 method                  order adaptive  update
@@ -20,6 +21,9 @@ method                  order adaptive  update
 ``ito_heun``            1     no        Heun drift with the same Ito noise ``sqrt(2 kT h) B(y0) xi``
 ``leimkuhler_matthews`` 1     no        ``p = y0 + h v(y0) + k``, ``k <- sqrt(kT h/2) B(p) xi``,
                                         ``y1 = p + k``: the half kick ``k`` is held for next step
+``ito_heun_adaptive``   1     yes       ``ito_heun``'s step, error ``h/2 (v(yE) - v(y0))`` against
+                                        Euler-Maruyama's ``yE``, PI control; a rejected try's
+                                        noise is kept and split by Brownian bridges
 ======================= ===== ========= ==========================================================
 
 ``v = mu F`` with ``mu`` the 3N x 3N RPY mobility (bead diameter ``d``, single-bead mobility
@@ -69,6 +73,13 @@ from pathlib import Path
 
 import openmm  # loads libOpenMM.so and OpenMM's platforms before the plugin library
 import openmm.version
+
+from knotmm.dynamics.registry import (
+    DEFAULT_LANCZOS_TOLERANCE,
+    DEFAULT_MAX_TIMESTEP,
+    DEFAULT_MIN_TIMESTEP,
+    DEFAULT_TOLERANCE,
+)
 
 __all__ = [
     "RPYIntegrator",
@@ -290,7 +301,7 @@ if _rpy is not None:
         seed : int
             Seed of the noise stream (0: a fresh one each time, as OpenMM's integrators).
         min_step, max_step : float
-            Bounds of the adaptive step, in ps (knotmm's defaults 1e-7 and 1.0). An adaptive
+            Bounds of the adaptive step, in ps (knotmm's defaults, the registry's). An adaptive
             step below ``min_step`` raises ``openmm.OpenMMException`` and keeps the last state.
         threads : int
             Threads of the RPY pair loop (used from about 256 beads; same result bit for bit).
@@ -323,17 +334,17 @@ if _rpy is not None:
             self,
             step_size,
             method: str = "rk23",
-            error_tolerance: float = 1e-4,
+            error_tolerance: float = DEFAULT_TOLERANCE,
             *,
             bead_diameter: float = 1.0,
             mobility: float = 1.0,
             kT: float = 0.0,
             seed: int = 0,
-            min_step: float = 1e-7,
-            max_step: float = 1.0,
+            min_step: float = DEFAULT_MIN_TIMESTEP,
+            max_step: float = DEFAULT_MAX_TIMESTEP,
             threads: int = 1,
             noise: str = "cholesky",
-            lanczos_tolerance: float = 1e-6,
+            lanczos_tolerance: float = DEFAULT_LANCZOS_TOLERANCE,
         ):
             if method not in METHODS:
                 raise ValueError(
@@ -389,11 +400,11 @@ def noise_settings(integrator, n_beads: int | None = None) -> tuple[str, float]:
     (str, float)
         ``"cholesky"`` or ``"lanczos"``, and the tolerance. An integrator without a
         :class:`~knotmm.dynamics.noise.NoiseGenerator` (a custom noise callable, which the
-        plugin cannot run) gives ``("cholesky", 1e-6)``.
+        plugin cannot run) gives ``("cholesky", DEFAULT_LANCZOS_TOLERANCE)``.
     """
     noise = getattr(integrator, "noise", None)
     if not hasattr(noise, "method_for"):
-        return "cholesky", 1e-6
+        return "cholesky", DEFAULT_LANCZOS_TOLERANCE
     if n_beads is None:
         method = "cholesky" if noise.method == "auto" else noise.method
     else:
@@ -444,7 +455,7 @@ def from_python_integrator(integrator, threads: int = 1,
             f"(expected one of {', '.join(METHODS)})"
         )
     kwargs = {"threads": threads}
-    tolerance = 1e-4
+    tolerance = DEFAULT_TOLERANCE
     if METHODS[name][1]:
         tolerance = float(integrator.tolerance)
         kwargs.update(max_step=float(integrator.max_timestep),

@@ -45,7 +45,7 @@ from knotmm.shapes.checks import (
 from knotmm.shapes.curves import braid_curve, circle_curve, torus_curve
 from knotmm.shapes.geometry import TooFewBeadsError, mirror_image, place_on_curve
 from knotmm.shapes.knotinfo import TORUS_NAMES, named_knot_word, resolve_name, symmetry_type
-from knotmm.shapes.resources import check_memory
+from knotmm.shapes.resources import RunResources, check_memory
 from knotmm.shapes.systems import build_chains, build_link, build_open, is_link, is_open
 from knotmm.shapes.template import PendingKnotCheck, Template
 from knotmm.shapes.validation import (
@@ -304,7 +304,8 @@ def _ring_closure_notes(structure, cfg, allow_open_chain: bool) -> list[str]:
     return [f"{structure.path.name} is an open chain: closed here, bead {n - 1} bonded to bead 0"]
 
 
-def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now") -> Template:
+def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now",
+                   resources: RunResources | None = None) -> Template:
     """Build and check the starting shape a run file asks for.
 
     A run file's ``[[chains]]`` (several chains in one fluid), a link (a torus link, a
@@ -319,7 +320,8 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         Uses ``knot.*`` (kind, p, q, word, name, path, frame, topology, beads,
         minor_radius, major_radius, mirror, perturbation, seed), ``model.bond_length``,
         ``model.lj_sigma``, ``run.seed``, ``run.max_bond_length`` and, for the memory
-        estimate, ``run.integrator``, ``run.peclet``, ``run.timestep`` and ``run.noise``.
+        estimate when ``resources`` is not given, ``run.integrator``, ``run.peclet``,
+        ``run.timestep`` and ``run.noise``.
     allow_open_chain : bool, optional
         For ``knot.kind = "file"``: whether a file whose bonds leave the ring open (no bond
         from the last bead to the first) is accepted with a note, and closed. By default
@@ -329,7 +331,10 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         it; ``"later"`` (a run, which must not wait for topoly's start-up) sends the
         template to the worker and returns: :meth:`Template.settle_knot_type` judges the
         answer once it is back, and a wrong knot type raises there; ``"skip"``: not at all.
-
+    resources : RunResources, optional
+        What the run's memory depends on (the run plan's,
+        :attr:`knotmm.plan.RunPlan.resources`); default: read from ``cfg``'s ``[run]``
+        table (:meth:`RunResources.of`).
 
     Returns
     -------
@@ -425,7 +430,7 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         if pre.problems:
             raise TemplateError(_steric_message(spec, cfg, beads, steric, pre.problems[0]))
 
-    check_memory(cfg, x.shape[0])
+    check_memory(cfg if resources is None else resources, x.shape[0])
     perturbation = float(cfg["knot.perturbation"])
     if perturbation > 0.0:
         seed = cfg["knot.seed"] if cfg["knot.seed"] is not None else cfg["run.seed"]

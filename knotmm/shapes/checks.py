@@ -23,6 +23,7 @@ from knotmm.knots.identify import (
     topoly_available,
 )
 from knotmm.knots.writhe import writhe
+from knotmm.model.layout import ChainLayout
 from knotmm.shapes.knotinfo import name_order, normalise_name
 from knotmm.shapes.validation import check_positive
 from knotmm.units import LJ_CUTOFF_FACTOR
@@ -283,7 +284,7 @@ def check_template(
     bond_length = check_positive(bond_length, "bond_length")
     lj_sigma = check_positive(lj_sigma, "lj_sigma")
     n = x.shape[0]
-    bonds = np.linalg.norm(np.roll(x, -1, axis=0) - x, axis=1)
+    bonds = ChainLayout.ring(n).bond_lengths(x)
     rel = np.abs(bonds - bond_length) / bond_length
     worst = int(np.argmax(rel))
     steric = LJ_CUTOFF_FACTOR * lj_sigma

@@ -9,11 +9,12 @@ the chain; everything else a run holds grows in proportion to the number of bead
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from knotmm.dynamics.registry import REGISTRY, resolve
 from knotmm.errors import ConfigError
 
-__all__ = ["available_memory", "check_memory", "run_memory"]
+__all__ = ["RunResources", "available_memory", "check_memory", "run_memory"]
 
 
 def available_memory() -> int | None:
@@ -28,35 +29,77 @@ def available_memory() -> int | None:
     return None
 
 
-def run_memory(cfg, n_beads: int) -> tuple[int, str]:
-    """The largest allocation a run of ``n_beads`` needs, in bytes, and what it is.
+@dataclass(frozen=True)
+class RunResources:
+    """What a run's memory depends on beyond the template, as plain values.
 
-    Only the dense Brownian noise grows faster than the chain: ``run.noise = "cholesky"``
-    builds the 3N x 3N RPY mobility and its Cholesky factor, ``2 (3N)^2`` float64. The
-    deterministic dynamics, the Lanczos noise, the forces and the files take memory in
-    proportion to N.
+    The geometry code receives this, not the run file's ``[run]`` table: the run plan
+    (:func:`knotmm.plan.make_plan`) makes it from ``run.integrator``, ``run.peclet`` and
+    ``run.noise`` once (:meth:`of`), and :func:`knotmm.shapes.builder.build_template`
+    checks the chain it builds against it (:meth:`check`) before the knot check.
+
+    Attributes
+    ----------
+    brownian : bool
+        Whether the run draws Brownian noise (a Brownian integrator at a finite Pe).
+    noise : {"auto", "cholesky", "lanczos"}
+        ``run.noise`` as asked; :meth:`noise_method` resolves it for a chain's size.
     """
-    name, _ = resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
-    brownian = REGISTRY[name].brownian and math.isfinite(float(cfg["run.peclet"]))
-    if not brownian:
-        return 0, ""
-    from knotmm.dynamics.noise import NoiseGenerator  # numba and scipy: Brownian runs only
 
-    if NoiseGenerator(cfg["run.noise"]).method_for(n_beads) == "cholesky":
-        size = 3 * n_beads
-        what = f"the dense {size} x {size} RPY mobility and its Cholesky factor"
-        return 2 * size * size * 8, what
-    return 0, ""
+    brownian: bool = False
+    noise: str = "auto"
+
+    @classmethod
+    def of(cls, cfg) -> RunResources:
+        """The resources of a run configuration (a :class:`RunResources` is returned as it
+        is): the one place this module reads ``run.*`` keys."""
+        if isinstance(cfg, RunResources):
+            return cfg
+        name, _ = resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
+        brownian = REGISTRY[name].brownian and math.isfinite(float(cfg["run.peclet"]))
+        return cls(brownian=bool(brownian), noise=str(cfg["run.noise"]))
+
+    def noise_method(self, n_beads: int) -> str | None:
+        """``"cholesky"`` or ``"lanczos"`` for a chain of ``n_beads``; None without noise."""
+        if not self.brownian:
+            return None
+        from knotmm.dynamics.noise import NoiseGenerator  # numba and scipy: Brownian runs only
+
+        return NoiseGenerator(self.noise).method_for(n_beads)
+
+    def need(self, n_beads: int) -> tuple[int, str]:
+        """The largest allocation a run of ``n_beads`` needs, in bytes, and what it is.
+
+        Only the dense Brownian noise grows faster than the chain: ``run.noise = "cholesky"``
+        builds the 3N x 3N RPY mobility and its Cholesky factor, ``2 (3N)^2`` float64 (both
+        engines: the plugin's LAPACK factor is the same size). The deterministic dynamics,
+        the Lanczos noise, the forces and the files take memory in proportion to N.
+        """
+        if self.noise_method(n_beads) == "cholesky":
+            size = 3 * n_beads
+            what = f"the dense {size} x {size} RPY mobility and its Cholesky factor"
+            return 2 * size * size * 8, what
+        return 0, ""
+
+    def check(self, n_beads: int) -> None:
+        """Refuse, in one line with the estimate, a run whose dense noise cannot fit in
+        memory (:func:`available_memory`)."""
+        need, what = self.need(n_beads)
+        have = available_memory()
+        if need == 0 or have is None or need <= have:
+            return
+        raise ConfigError(
+            f"knot.beads={n_beads} with run.noise = {self.noise!r} needs about "
+            f"{need / 1e9:.3g} GB for {what}, more than the {have / 1e9:.3g} GB available; "
+            'use run.noise = "lanczos" (matrix-free) or fewer beads'
+        )
+
+
+def run_memory(cfg, n_beads: int) -> tuple[int, str]:
+    """:meth:`RunResources.need` of a run configuration (or of a :class:`RunResources`)."""
+    return RunResources.of(cfg).need(n_beads)
 
 
 def check_memory(cfg, n_beads: int) -> None:
-    """Refuse, in one line with the estimate, a run whose dense noise cannot fit in memory."""
-    need, what = run_memory(cfg, n_beads)
-    have = available_memory()
-    if need == 0 or have is None or need <= have:
-        return
-    raise ConfigError(
-        f"knot.beads={n_beads} with run.noise = {cfg['run.noise']!r} needs about "
-        f"{need / 1e9:.3g} GB for {what}, more than the {have / 1e9:.3g} GB available; "
-        'use run.noise = "lanczos" (matrix-free) or fewer beads'
-    )
+    """:meth:`RunResources.check` of a run configuration (or of a :class:`RunResources`)."""
+    RunResources.of(cfg).check(n_beads)

@@ -319,7 +319,7 @@ def _link_radius_notes(cfg, chords: tuple[float, ...], beads: int) -> list[str]:
 def _check_bond_range(cfg, components: list[np.ndarray], key: str) -> None:
     """Refuse components with a bond past run.max_bond_length (the run's first step would)."""
     with np.errstate(over="ignore"):
-        longest = max(float(np.linalg.norm(np.roll(x, -1, axis=0) - x, axis=1).max())
+        longest = max(float(ChainLayout.ring(len(x)).bond_lengths(x).max())
                       for x in components)
     if longest > cfg["run.max_bond_length"]:
         if float(cfg["knot.perturbation"]) > 0.0:

@@ -3,10 +3,10 @@
 ``knotmm sweep --dry-run`` runs nothing, writes nothing, and reports every point that
 ``knotmm run`` would refuse (too few beads for the knot, a bad integrator for the Peclet
 number, a platform that is not there, ...), with the same one-line message. The checks are
-the run path's own: :func:`knotmm.workflow.build_run`, which :func:`knotmm.workflow.run`
-calls before it writes anything (the integrator, the template with its chains:
-``[[chains]]``, links and open filaments, bonds, steric distances, knot type; then the
-Simulation on that layout: model, platform, starting positions). See
+the run path's own: the run plan (:func:`knotmm.plan.prepare`), which
+:func:`knotmm.workflow.run` makes before it writes anything (the integrator, the template
+with its chains: ``[[chains]]``, links and open filaments, bonds, steric distances, knot
+type; then the Simulation on that layout: model, platform, starting positions). See
 ``docs/architecture.md``.
 """
 
@@ -57,9 +57,9 @@ def check_config(cfg: RunConfig) -> None:
     ConfigError, TemplateError, TrajectoryFileError
         The error :func:`knotmm.workflow.run` raises for this configuration before it starts.
     """
-    from knotmm.workflow import build_run
+    from knotmm.plan import prepare
 
-    build_run(cfg, identify="now")  # run()'s own build: [[chains]], links, open filaments
+    prepare(cfg, identify="now")  # run()'s own plan: [[chains]], links, open filaments
 
 
 def check_points(points: Sequence[SweepPoint]) -> list[PointCheck]:

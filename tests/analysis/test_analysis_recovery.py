@@ -6,9 +6,9 @@ import json
 
 import numpy as np
 import pytest
+from synthetic import vortex_knot_positions, write_run_directory
 
 from knotmm.analysis import analyze, analyze_run, load_run
-from knotmm.analysis.synthetic import vortex_knot_positions, write_run_directory
 from knotmm.io.run_data import RunData
 
 # Realistic numbers for T(2,3), N = 90 (docs/model.md; Gruziel et al. 2018).

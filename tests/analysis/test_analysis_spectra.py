@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from synthetic import vortex_knot_positions
 
 from knotmm.analysis import (
     analyze,
@@ -15,7 +16,6 @@ from knotmm.analysis import (
     winding_numbers,
 )
 from knotmm.analysis.spectra import line_spectrum
-from knotmm.analysis.synthetic import vortex_knot_positions
 from knotmm.io.run_data import RunData
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from synthetic import vortex_knot_positions
 
 from knotmm.analysis import analyze, steady_window
-from knotmm.analysis.synthetic import vortex_knot_positions
 from knotmm.errors import ConfigError
 from knotmm.io.run_data import RunData
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from synthetic_regimes import noisy_swirl, rigid_ring, rotate_x, tilted_torus
 
 from knotmm.analysis.body import body_frame, torus_shape
 from knotmm.analysis.bootstrap import (
@@ -12,7 +13,6 @@ from knotmm.analysis.bootstrap import (
     bootstrap_uncertainties,
 )
 from knotmm.analysis.detect import FALSE_ALARM, detect_swirl, float32_spacing, line_amplitudes
-from knotmm.analysis.synthetic_regimes import noisy_swirl, rigid_ring, rotate_x, tilted_torus
 
 
 def test_body_frame_of_a_tilted_ring_is_its_own_cylinder():

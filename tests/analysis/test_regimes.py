@@ -8,15 +8,15 @@ import json
 
 import numpy as np
 import pytest
-
-from knotmm.analysis import analyze, analyze_run, format_table, load_run
-from knotmm.analysis.synthetic import vortex_knot_positions, write_run_directory
-from knotmm.analysis.synthetic_regimes import (
+from synthetic import vortex_knot_positions, write_run_directory
+from synthetic_regimes import (
     elliptic_swirl,
     flip_angles,
     rigid_ring,
     tilted_torus,
 )
+
+from knotmm.analysis import analyze, analyze_run, format_table, load_run
 
 DT = 0.5
 TIMES = np.arange(401) * DT  # 0 .. 200 tau_d

@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 import pytest
+from synthetic import vortex_knot_positions, write_run_directory
 
 from knotmm.analysis.replicas import point_of, replica_statistics
-from knotmm.analysis.synthetic import vortex_knot_positions, write_run_directory
 from knotmm.cli.main import main
 
 DT = 0.5

@@ -15,11 +15,11 @@ import math
 
 import numpy as np
 import pytest
+from synthetic import vortex_knot_positions, write_run_directory
 
 from knotmm.analysis import analyze, load_run
 from knotmm.analysis.detect import RELAXED, detect_swirl, motion_decay
 from knotmm.analysis.regimes import UNDRIVEN
-from knotmm.analysis.synthetic import vortex_knot_positions, write_run_directory
 
 DT = 0.25
 T = np.arange(200) * DT  # a window of 49.75 tau_d

@@ -6,8 +6,8 @@ import json
 
 import numpy as np
 import pytest
+from synthetic import vortex_knot_positions, write_run_directory
 
-from knotmm.analysis.synthetic import vortex_knot_positions, write_run_directory
 from knotmm.cli.main import main
 
 

@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import tomli_w
+from synthetic import vortex_knot_positions, write_run_directory
 
-from knotmm.analysis.synthetic import vortex_knot_positions, write_run_directory
 from knotmm.cli.main import main
 from knotmm.io.rundir import RunLock
 

@@ -461,16 +461,16 @@ def _brownian_simulation(positions, seed):
 
 def test_simulation_same_seed_same_trajectory_and_exact_resume(tmp_path, trefoil40):
     """Seeded runs repeat exactly; a checkpoint resumes the same noise."""
-    from knotmm.engine.checkpoint import load_checkpoint, save_checkpoint
+    from knotmm.engine.checkpoint import read_checkpoint
 
     a = _brownian_simulation(trefoil40, seed=3)
     b = _brownian_simulation(trefoil40, seed=3)
     a.step(10)
     b.step(10)
     np.testing.assert_array_equal(a.positions, b.positions)
-    save_checkpoint(tmp_path / "checkpoint.npz", a, {"frames": 0, "rows": 0})
+    a.saveCheckpoint(tmp_path / "checkpoint.npz", {"frames": 0, "rows": 0})
     a.step(10)
-    ckpt = load_checkpoint(tmp_path / "checkpoint.npz")
+    ckpt = read_checkpoint(tmp_path / "checkpoint.npz")
     resumed = _brownian_simulation(ckpt["positions"], seed=999)  # the seed is overridden
     resumed.integrator.set_state(ckpt["integrator_state"])
     resumed.step(10)

@@ -290,7 +290,7 @@ def test_adaptive_ito_heun_boltzmann(peclet):
     kT = 1.0 / peclet
     knot = JUDGED_KNOT[peclet]
     integ = AdaptiveItoHeun(0.002, peclet=peclet, seed=SEEDS[peclet], noise="cholesky",
-                            tolerance=default_tolerance())
+                            tolerance=default_tolerance(), max_timestep=0.05)  # as measured
     dyn = sample_brownian(integ, DURATION[peclet], BURN_IN)
     n_used = len(select_samples(dyn, knot))
     used = n_used * dyn["sample_every"]

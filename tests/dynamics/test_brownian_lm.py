@@ -428,7 +428,7 @@ def test_extended_run_equals_uninterrupted(tmp_path):
     """``knotmm run`` for 1 tau_d against 0.5 tau_d extended by ``--resume --duration 1``:
     the same frames and the same final state, bit for bit (the held kick is checkpointed)."""
     from knotmm.cli.main import main
-    from knotmm.engine.checkpoint import load_checkpoint
+    from knotmm.engine.checkpoint import read_checkpoint
     from knotmm.workflow import run
 
     def settings(duration):
@@ -443,7 +443,7 @@ def test_extended_run_equals_uninterrupted(tmp_path):
     run(settings(1.0), directory=whole, progress=False)
     run(settings(0.5), directory=part, progress=False)
     assert main(["run", "--resume", str(part), "--duration", "1", "--no-progress"]) == 0
-    a, b = load_checkpoint(whole / "checkpoint.npz"), load_checkpoint(part / "checkpoint.npz")
+    a, b = read_checkpoint(whole / "checkpoint.npz"), read_checkpoint(part / "checkpoint.npz")
     assert a["time"] == b["time"] > 0.5 and a["step"] == b["step"]  # written after the resume
     np.testing.assert_array_equal(a["positions"], b["positions"])
     assert a["integrator_state"] == b["integrator_state"]

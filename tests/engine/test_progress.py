@@ -5,7 +5,7 @@ from __future__ import annotations
 import io
 import re
 
-import knotmm.engine.reporters as reporters
+import knotmm.progress as progress
 from knotmm.engine.reporters import ProgressReporter
 
 
@@ -31,7 +31,7 @@ def _drive(bar, times, clock=None, seconds_per_report=0.0):
 
 
 def test_a_line_at_every_tenth_of_the_run(monkeypatch):
-    monkeypatch.setattr(reporters.time, "monotonic", _Clock())
+    monkeypatch.setattr(progress.time, "monotonic", _Clock())
     out = io.StringIO()
     bar = ProgressReporter(0.0, 20.0, 0.5, stream=out)  # StringIO: not a terminal
     _drive(bar, [0.5 * k for k in range(1, 41)])
@@ -43,7 +43,7 @@ def test_a_line_at_every_tenth_of_the_run(monkeypatch):
 
 def test_a_line_every_30_s_between_tenths(monkeypatch):
     clock = _Clock()
-    monkeypatch.setattr(reporters.time, "monotonic", clock)
+    monkeypatch.setattr(progress.time, "monotonic", clock)
     out = io.StringIO()
     bar = ProgressReporter(10.0, 110.0, 0.5, stream=out)  # a resumed run: from t = 10
     # 0.5 tau_d per report, 7 s per report: 30 s pass after 5 reports (2.5 % of the run)
@@ -58,3 +58,34 @@ def test_no_lines_when_disabled_and_none_on_a_terminal_bar():
     bar = ProgressReporter(0.0, 10.0, 0.5, enabled=False, stream=out)
     _drive(bar, [0.5 * k for k in range(1, 21)])
     assert out.getvalue() == ""
+
+
+def test_the_run_shows_its_progress_through_the_one_display(monkeypatch):
+    """Issue 31: one progress display; the run's reporter only tells it the simulated time,
+    so the display's rules (its line cadence, its last line) are the run's too."""
+    from knotmm.progress import Progress
+
+    clock = _Clock()
+    monkeypatch.setattr(progress.time, "monotonic", clock)
+    monkeypatch.setattr(Progress, "line_seconds", 5.0)
+    out = io.StringIO()
+    bar = ProgressReporter(0.0, 100.0, 0.5, stream=out)
+    assert isinstance(bar.progress, Progress)
+    _drive(bar, [0.5 * k for k in range(1, 5)], clock, seconds_per_report=3.0)
+    assert len(out.getvalue().splitlines()) == 2  # at 6 s and 12 s: every 5 s, not 30 s
+    _drive(bar, [100.0], clock, seconds_per_report=3.0)
+    last = out.getvalue().splitlines()[-1]
+    assert last.startswith("knotmm: t = 100 / 100 tau_d (100 %)") and "left" not in last
+
+
+def test_the_run_bar_on_a_terminal_counts_tau_d():
+    class _Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    term = _Terminal()
+    bar = ProgressReporter(10.0, 30.0, 0.5, stream=term)  # resumed at t = 10
+    _drive(bar, [10.0 + 0.5 * k for k in range(1, 41)])
+    bar.close()
+    shown = term.getvalue()
+    assert "20.0/20.0 tau_d" in shown and "100%" in shown and "knotmm: t =" not in shown

@@ -6,9 +6,9 @@ import shutil
 
 import numpy as np
 import pytest
+from synthetic import vortex_knot_positions, write_run_directory
 
 from knotmm.analysis import load_run
-from knotmm.analysis.synthetic import vortex_knot_positions, write_run_directory
 from knotmm.errors import ConfigError, TrajectoryFileError
 
 DT = 0.5

@@ -5,9 +5,9 @@ from __future__ import annotations
 import mdtraj
 import numpy as np
 import pytest
+from synthetic import vortex_knot_positions, write_run_directory
 
 import knotmm
-from knotmm.analysis.synthetic import vortex_knot_positions, write_run_directory
 from knotmm.io.run_data import RunData, load_run
 from knotmm.units import ANGSTROM_PER_D, PS_PER_TAU
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from knotmm.io.pdb import mdtraj_topology, write_pdb
-from knotmm.model.topology import bead_topology, ring_bonds
+from knotmm.model.topology import bead_topology
 
 
 @pytest.mark.parametrize("n", [4, 5, 90])
@@ -20,7 +20,6 @@ def test_topology_is_a_ring_of_bea_residues(n):
     assert bonds == {tuple(sorted((i, (i + 1) % n))) for i in range(n)}
     assert (0, n - 1) in bonds  # the closure
     assert top.getPeriodicBoxVectors() is None
-    assert {tuple(sorted(map(int, b))) for b in ring_bonds(n)} == bonds
 
 
 

@@ -81,8 +81,8 @@ def test_bad_arguments_are_one_line(capsys, run40):
 
 
 def test_run_without_periodic_window_is_one_line(capsys, tmp_path):
-    from knotmm.analysis.synthetic import write_run_directory
-    from knotmm.analysis.synthetic_regimes import rigid_ring
+    from synthetic import write_run_directory
+    from synthetic_regimes import rigid_ring
 
     t = np.arange(0, 100, 0.5)
     write_run_directory(tmp_path / "ring", rigid_ring(t, n_beads=40, radius=3.0), 0.5)

@@ -24,17 +24,23 @@ public:
     /**
      * @param stepSize     first (adaptive) or fixed step, in ps (= tau_d)
      * @param method       a name of the method table (RPYMethods.h): "euler", "heun",
-     *                     "midpoint", "rk23", "rkc2", "euler_maruyama", "ito_heun" or
-     *                     "leimkuhler_matthews"
+     *                     "midpoint", "rk23", "rkc2", "euler_maruyama", "ito_heun",
+     *                     "leimkuhler_matthews" or "ito_heun_adaptive"
      * @param errorTolerance  largest per-bead displacement error per step (adaptive), in nm
+     *
+     * The defaults (errorTolerance here, minimum and maximum step, Lanczos tolerance in the
+     * constructor) are knotmm.dynamics.registry's DEFAULT_*, which a test holds them to.
      */
     explicit RPYIntegrator(double stepSize, const std::string& method = "rk23",
                            double errorTolerance = 1e-4);
 
     const std::string& getMethod() const { return method; }
-    /** The step size follows error control (rk23, rkc2; RPYMethodInfo::adaptive). */
+    /** The step follows error control (rk23, rkc2, ito_heun_adaptive; RPYMethodInfo::adaptive). */
     bool isAdaptive() const;
-    /** Noise when kT > 0 (euler_maruyama, ito_heun, leimkuhler_matthews; RPYMethodInfo::stochastic). */
+    /**
+     * Noise when kT > 0 (euler_maruyama, ito_heun, leimkuhler_matthews, ito_heun_adaptive;
+     * RPYMethodInfo::stochastic).
+     */
     bool isStochastic() const;
 
     double getErrorTolerance() const { return errorTolerance; }

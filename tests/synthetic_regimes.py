@@ -1,8 +1,8 @@
-"""Synthetic trajectories for the regimes of issue 13, each with a known truth.
+"""Synthetic trajectories for the regimes of issue 13, each with a known truth (test data).
 
 * :func:`rigid_ring`: a rigid circle that sinks, spins about its own axis and may be tilted
   or turn over; it has no swirl at all.
-* :func:`tilted_torus`: the vortex knot of :mod:`knotmm.analysis.synthetic`, tilted by a
+* :func:`tilted_torus`: the vortex knot of :mod:`synthetic`, tilted by a
   fixed angle (or by an angle that changes in time: a flipping torus, :func:`flip_angles`).
 * :func:`elliptic_swirl`: the vortex knot with independent half-amplitudes in rho and z.
 * :func:`noisy_swirl`: the vortex knot whose swirl phase diffuses (``d theta = 2 pi dt /
@@ -15,8 +15,7 @@ Positions are in d, times in tau_d; gravity along -z.
 from __future__ import annotations
 
 import numpy as np
-
-from knotmm.analysis.synthetic import vortex_knot_positions
+from synthetic import vortex_knot_positions
 
 __all__ = ["elliptic_swirl", "flip_angles", "noisy_swirl", "rigid_ring", "rotate_x", "tilted_torus"]
 
@@ -84,7 +83,7 @@ def tilted_torus(times, tilt_deg=0.0, velocity: float = 7.0, **vortex) -> np.nda
     velocity : float
         In d/tau_d.
     **vortex
-        Passed to :func:`knotmm.analysis.synthetic.vortex_knot_positions` (not ``z_com``).
+        Passed to :func:`synthetic.vortex_knot_positions` (not ``z_com``).
 
     Returns
     -------
@@ -102,7 +101,7 @@ def elliptic_swirl(
 ) -> np.ndarray:
     """The vortex knot with half-amplitude ``amplitude_rho`` in rho and ``amplitude_z`` in z.
 
-    Built from :func:`~knotmm.analysis.synthetic.vortex_knot_positions` with ``C =
+    Built from :func:`~synthetic.vortex_knot_positions` with ``C =
     amplitude_rho`` (which sets rho and alpha) by rescaling the z oscillation from ``C k``,
     ``k = sqrt(p^2 + q^2) / q``, to ``amplitude_z``.
     """
@@ -141,7 +140,7 @@ def noisy_swirl(
     noise : float
         Standard deviation of Gaussian noise on every coordinate, d.
     n_beads, p, q, rho0, swirl_amplitude, tau_swirl, velocity
-        As in :func:`~knotmm.analysis.synthetic.vortex_knot_positions`.
+        As in :func:`~synthetic.vortex_knot_positions`.
     seed : int
 
     Returns

@@ -12,18 +12,28 @@ around the torus core), so every frame is a torus knot with an elliptic cross-se
 
 The unmirrored knot is right-handed (positive writhe); ``mirror=True`` reflects x -> -x,
 which gives the left-handed knot rotating the other way. :func:`write_run_directory`
-saves any trajectory as a run directory like ``knotmm run`` writes, for tests and for
+saves any trajectory as a run directory through the writers ``knotmm run`` uses (the DCD
+writer, ``write_pdb``, ``write_run_toml``, the observables reporter), for tests and for
 checking the analysis on data where the truth is known.
+
+Test data, not part of the package: ``tests/conftest.py`` puts this folder on ``sys.path``.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
-from knotmm.io.rundir import OBSERVABLES_FILE, RUN_FILE, TOPOLOGY_FILE, TRAJECTORY_FILE
-from knotmm.units import d_to_angstrom
+from knotmm.config import RunConfig
+from knotmm.engine.reporters import ObservablesReporter
+from knotmm.io.dcd import DCDWriter
+from knotmm.io.observables import ENERGY_TERMS
+from knotmm.io.pdb import write_pdb
+from knotmm.io.rundir import OBSERVABLES_FILE, TOPOLOGY_FILE, TRAJECTORY_FILE, write_run_toml
+from knotmm.model.layout import ChainLayout
+from knotmm.model.topology import bead_topology
 
 __all__ = ["vortex_knot_positions", "write_run_directory"]
 
@@ -89,6 +99,30 @@ def vortex_knot_positions(
     return x
 
 
+class _Frame:
+    """What the run's reporters read of a Simulation, for one frame of a given trajectory.
+
+    Energies are unknown for a made-up trajectory: NaN in ``observables.csv``.
+    """
+
+    def __init__(self, layout: ChainLayout, frame_interval: float):
+        self._bonds = layout.bonds()
+        self.timestep = frame_interval
+        self.n_evaluations = 0
+        self.positions = self.time = self.currentStep = None
+
+    def at(self, k: int, positions: np.ndarray, time: float) -> _Frame:
+        self.positions, self.time, self.currentStep = positions, time, k
+        return self
+
+    def energies(self) -> dict[str, float]:
+        return dict.fromkeys(ENERGY_TERMS, math.nan)
+
+    def bond_lengths(self) -> np.ndarray:
+        i, j = self._bonds[:, 0], self._bonds[:, 1]
+        return np.linalg.norm(self.positions[j] - self.positions[i], axis=1)
+
+
 def write_run_directory(
     directory,
     positions,
@@ -96,19 +130,26 @@ def write_run_directory(
     config: dict | None = None,
     write_run_file: bool = True,
 ) -> Path:
-    """Save positions as a run directory: trajectory.dcd, topology.pdb, run.toml.
+    """Save positions as a run directory, through the writers of ``knotmm run``.
+
+    ``trajectory.dcd`` by :class:`knotmm.io.dcd.DCDWriter` (the run's
+    :class:`~knotmm.engine.reporters.DCDReporter` writes through it), ``topology.pdb`` by
+    :func:`knotmm.io.pdb.write_pdb`, ``run.toml`` by :func:`knotmm.io.rundir.write_run_toml`
+    (the resolved run file, validated), ``observables.csv`` by the run's
+    :class:`~knotmm.engine.reporters.ObservablesReporter` (energies NaN: not known here).
 
     Parameters
     ----------
     directory : str or Path
         Created if missing.
     positions : array_like, shape (n_frames, n_beads, 3)
-        Bead positions, in d (written in Angstrom, 1 d = 10 A).
+        Bead positions of one ring, in d (written in Angstrom, 1 d = 10 A).
     frame_interval : float
         Time between frames, in tau_d.
     config : dict, optional
         Run-file tables to write (merged over ``[knot] beads``, ``[run] duration`` and
-        ``[output] frame_interval``, which are filled in from the data).
+        ``[output] frame_interval``, which are filled in from the data); its ``[knotmm]``
+        table is the facts table of ``run.toml`` (``version = "synthetic"`` unless given).
     write_run_file : bool
         False leaves out ``run.toml`` (a bare DCD/PDB pair).
 
@@ -117,40 +158,36 @@ def write_run_directory(
     Path
         The directory.
     """
-    import mdtraj
-    import tomli_w
-    from mdtraj.formats import DCDTrajectoryFile
-
-    from knotmm.io.pdb import mdtraj_topology
-
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     x = np.asarray(positions, dtype=np.float64)
     n_frames, n_beads = x.shape[:2]
+    interval = float(frame_interval)
+    layout = ChainLayout((n_beads,), (True,))
 
-    top = mdtraj_topology(n_beads)
-    # mdtraj stores nm; 1 d = 1 nm, so d values go in unchanged and come out as 10 A per d.
-    mdtraj.Trajectory(x[:1], top).save_pdb(str(out / TOPOLOGY_FILE))
-    with DCDTrajectoryFile(str(out / TRAJECTORY_FILE), "w") as fh:
-        fh.write(d_to_angstrom(x).astype(np.float32))
+    write_pdb(out / TOPOLOGY_FILE, x[0], layout=layout)
+    with open(out / TRAJECTORY_FILE, "wb") as fh:
+        dcd = DCDWriter(fh, bead_topology(layout), interval)
+        for frame in x:
+            dcd.write(frame)
 
     if write_run_file:
         tables: dict = {
             "knot": {"beads": n_beads},
-            "run": {"duration": (n_frames - 1) * float(frame_interval)},
-            "output": {"directory": str(out), "frame_interval": float(frame_interval)},
+            "run": {"duration": (n_frames - 1) * interval},
+            "output": {"directory": str(out), "frame_interval": interval},
         }
         for name, values in (config or {}).items():
             tables.setdefault(name, {}).update(values)
-        tables.setdefault("knotmm", {}).setdefault("version", "synthetic")
-        (out / RUN_FILE).write_text(tomli_w.dumps(tables))
+        facts = tables.pop("knotmm", {})
+        facts.setdefault("version", "synthetic")
+        write_run_toml(out, RunConfig.from_dict(tables), facts)
 
-    com = x.mean(axis=1)
-    times = np.arange(n_frames) * float(frame_interval)
-    rows = ["time,step,com_x,com_y,com_z"]
-    rows += [
-        f"{t:.6g},{k},{c[0]:.6g},{c[1]:.6g},{c[2]:.6g}"
-        for k, (t, c) in enumerate(zip(times, com, strict=True))
-    ]
-    (out / OBSERVABLES_FILE).write_text("\n".join(rows) + "\n")
+    rows = ObservablesReporter(out / OBSERVABLES_FILE, interval)
+    frame = _Frame(layout, interval)
+    try:
+        for k, xk in enumerate(x):
+            rows.report(frame.at(k, xk, k * interval), None)
+    finally:
+        rows.close()
     return out

@@ -1,0 +1,380 @@
+"""The run plan: a validated run configuration resolved once into every decision of a run.
+
+:func:`prepare` turns a :class:`knotmm.config.RunConfig` into a frozen :class:`RunPlan` and
+the objects it decided on: the checked template and the :class:`~knotmm.engine.simulation.
+Simulation` on its layout. Each decision is made here once, in this order (an error stops
+at the first, as ``knotmm run`` reports it; nothing is written):
+
+1. the stepping (:class:`Stepping`): ``run.integrator = "auto"`` and the step resolved, the
+   tolerance, the step bounds, kT, the seed; the integrator built once, which checks it
+   against ``run.peclet`` before the template is built;
+2. ``run.on_topology_change = "stop"`` against topoly;
+3. the template (:class:`TemplateSpec`: its keys, perturbation and seed rule), built by
+   :func:`knotmm.shapes.builder.build_template` with the plan's memory budget
+   (:class:`knotmm.shapes.resources.RunResources`: the geometry code gets it as values,
+   not as ``run.*`` keys); the noise method for the chain's size;
+4. the Simulation: engine and platform resolved (:meth:`Simulation.from_config`), the
+   precision asked of OpenMM (:class:`Placement`);
+5. ``run.integrator = "auto"`` at ``Pe = inf``: ONE stiffness probe on that Simulation,
+   which is kept when the choice keeps its integrator (else the final one is built once);
+6. the record: the configuration with every resolved key (one :meth:`RunConfig.replace`,
+   which validates only those keys), and the reasons ``run.toml`` records
+   (``integrator_choice``).
+
+:func:`knotmm.workflow.run` (and through it replicas and sweep points) and ``sweep
+--dry-run`` (:func:`knotmm.workflow.build_run`) start from it; below it nothing reads the run
+file again to decide.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+from typing import Any
+
+from knotmm.config import RunConfig, resolve_stepping, resolve_tolerance
+from knotmm.dynamics import registry
+from knotmm.dynamics.registry import AUTO, AUTO_STIFFNESS, REGISTRY, auto_deterministic
+from knotmm.engine.knot_checks import check_stop_on_change
+from knotmm.engine.simulation import Simulation
+from knotmm.model.parameters import ChainModel
+from knotmm.shapes.resources import RunResources
+from knotmm.units import thermal_energy
+
+__all__ = [
+    "Output",
+    "Placement",
+    "PreparedRun",
+    "RunPlan",
+    "Stepping",
+    "TemplateSpec",
+    "make_plan",
+    "prepare",
+]
+
+log = logging.getLogger(__name__)
+
+@dataclass(frozen=True)
+class Stepping:
+    """How a run steps: every ``[run]`` key of the integrator, resolved.
+
+    Attributes
+    ----------
+    integrator : str
+        The registry name used (never ``"auto"``).
+    timestep : float
+        The fixed step, or an adaptive integrator's first step, in tau_d.
+    tolerance : float
+        The local error per step of an adaptive integrator, in d (resolved default).
+    max_timestep, min_timestep : float
+        An adaptive integrator's step bounds, in tau_d.
+    peclet : float
+        ``Pe = d F0 / kT`` (``inf``: deterministic).
+    kT : float
+        ``1 / Pe``, in F0 d (0 at ``Pe = inf``).
+    seed : int
+        ``run.seed``: the noise stream's seed.
+    noise : str
+        ``run.noise`` as asked (``"auto"``, ``"cholesky"``, ``"lanczos"``).
+    noise_method : str or None
+        The noise drawn for this chain's size; None without noise.
+    lanczos_tolerance : float
+    """
+
+    integrator: str
+    timestep: float
+    tolerance: float
+    max_timestep: float
+    min_timestep: float
+    peclet: float
+    kT: float  # noqa: N815 - the physicist's name
+    seed: int
+    noise: str
+    noise_method: str | None
+    lanczos_tolerance: float
+
+    @classmethod
+    def of(cls, cfg: RunConfig) -> Stepping:
+        """The stepping of ``cfg`` (``run.integrator = "auto"`` resolved by the Peclet number
+        alone, :func:`knotmm.config.resolve_stepping`; the stiffness choice comes later)."""
+        name, timestep = resolve_stepping(cfg)
+        return cls(
+            integrator=name,
+            timestep=timestep,
+            tolerance=resolve_tolerance(cfg, name),
+            max_timestep=float(cfg["run.max_timestep"]),
+            min_timestep=float(cfg["run.min_timestep"]),
+            peclet=float(cfg["run.peclet"]),
+            kT=thermal_energy(cfg["run.peclet"]),
+            seed=int(cfg["run.seed"]),
+            noise=str(cfg["run.noise"]),
+            noise_method=None,
+            lanczos_tolerance=float(cfg["run.lanczos_tolerance"]),
+        )
+
+    @property
+    def record(self) -> dict[str, Any]:
+        """The resolved ``run.*`` keys as ``run.toml`` records them."""
+        return {"run.integrator": self.integrator, "run.timestep": self.timestep,
+                "run.tolerance": self.tolerance}
+
+    def make_integrator(self):
+        """A fresh integrator of this stepping
+        (:func:`knotmm.dynamics.registry.make`, with the arguments
+        :func:`~knotmm.dynamics.registry.integrator_from_config` gives it)."""
+        return registry.make(
+            self.integrator, self.timestep, peclet=self.peclet, seed=self.seed,
+            noise=self.noise, lanczos_tolerance=self.lanczos_tolerance,
+            tolerance=self.tolerance, max_timestep=self.max_timestep,
+            min_timestep=self.min_timestep,
+        )
+
+
+@dataclass(frozen=True)
+class TemplateSpec:
+    """The start a run asks for: its ``[knot]`` table or ``[[chains]]`` entries.
+
+    Attributes
+    ----------
+    kind : str
+        ``knot.kind`` (the first chain's for ``[[chains]]``).
+    chains : tuple of Mapping
+        The chains' keys, one read-only table each (one for a ``[knot]`` run).
+    perturbation : float
+        ``knot.perturbation``, in d (the largest of the chains').
+    seeds : tuple of int or None
+        Per chain, the seed of its perturbation (``knot.seed``, else ``run.seed``, plus the
+        chain's index for ``[[chains]]`` entries without their own seed); None where a chain
+        is not perturbed.
+    """
+
+    kind: str
+    chains: tuple[Mapping[str, Any], ...]
+    perturbation: float
+    seeds: tuple[int | None, ...]
+
+    @classmethod
+    def of(cls, cfg: RunConfig) -> TemplateSpec:
+        """The spec of ``cfg`` (its ``[knot]`` or ``[[chains]]`` keys)."""
+        entries = cfg.chains
+        several = entries is not None
+        if not several:
+            entries = [cfg.table("knot")]
+        seeds = []
+        for c, entry in enumerate(entries):
+            if not float(entry.get("perturbation") or 0.0) > 0.0:
+                seeds.append(None)
+            elif entry.get("seed") is not None:
+                seeds.append(int(entry["seed"]))
+            else:
+                seeds.append(int(cfg["run.seed"]) + (c if several else 0))
+        return cls(
+            kind=str(entries[0]["kind"]),
+            chains=tuple(MappingProxyType(dict(e)) for e in entries),
+            perturbation=max(float(e.get("perturbation") or 0.0) for e in entries),
+            seeds=tuple(seeds),
+        )
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a run computes: engine, OpenMM platform and its precision, threads.
+
+    Attributes
+    ----------
+    engine : {"python", "plugin"}
+        ``run.engine`` resolved (:func:`knotmm.engine.engines.resolve_engine`).
+    platform : str
+        The OpenMM platform the Context runs on (``run.platform = "auto"`` resolved).
+    precision : str
+        The platform's force precision, asked of OpenMM: its ``Precision`` property where
+        it has one (CUDA, OpenCL, HIP), else ``"double"`` or ``"single"`` by
+        ``Platform.supportsDoublePrecision`` (Reference: double; CPU: single).
+    threads, mobility_threads : int
+        ``run.threads`` (the CPU platform's) and ``run.mobility_threads`` (the RPY loop's).
+    """
+
+    engine: str
+    platform: str
+    precision: str
+    threads: int
+    mobility_threads: int
+
+    @classmethod
+    def of(cls, sim: Simulation, cfg: RunConfig) -> Placement:
+        """The placement of a built Simulation (asked of its Context)."""
+        platform = sim.context.getPlatform()
+        if "Precision" in platform.getPropertyNames():
+            precision = platform.getPropertyValue(sim.context, "Precision")
+        else:
+            precision = "double" if platform.supportsDoublePrecision() else "single"
+        return cls(engine=sim.engine, platform=sim.platform_name, precision=str(precision),
+                   threads=int(cfg["run.threads"]),
+                   mobility_threads=int(cfg["run.mobility_threads"]))
+
+
+@dataclass(frozen=True)
+class Output:
+    """What a run writes, and when (in tau_d).
+
+    Attributes
+    ----------
+    directory : str
+        ``output.directory``.
+    frame_interval : float
+        Between frames of ``trajectory.dcd``.
+    observables_interval : float
+        Between rows of ``observables.csv`` (``output.observables_interval``, default the
+        frame interval).
+    checkpoint_interval : float
+        Between checkpoints: ``output.checkpoint_interval`` rounded up to a whole number of
+        frame intervals (a checkpoint is written at a frame).
+    """
+
+    directory: str
+    frame_interval: float
+    observables_interval: float
+    checkpoint_interval: float
+
+    @classmethod
+    def of(cls, cfg: RunConfig) -> Output:
+        """The output of ``cfg`` (a resumed run's too)."""
+        frame = cfg["output.frame_interval"]
+        return cls(
+            directory=str(cfg["output.directory"]),
+            frame_interval=frame,
+            observables_interval=cfg["output.observables_interval"] or frame,
+            checkpoint_interval=frame * max(1, math.ceil(cfg["output.checkpoint_interval"]
+                                                         / frame - 1e-9)),
+        )
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """Every decision made before a run, made once (:func:`prepare`).
+
+    Attributes
+    ----------
+    config : RunConfig
+        The run file as ``run.toml`` records it: every resolved key written back (the
+        integrator and step used, not ``"auto"``; the template's keys).
+    template : TemplateSpec
+    model : ChainModel
+    stepping : Stepping
+    placement : Placement
+    resources : knotmm.shapes.resources.RunResources
+        What the run's memory depends on (checked against the memory available for the
+        chain built).
+    output : Output
+    n_beads : int
+    reasons : Mapping of str to str
+        Why a choice was made, as ``run.toml``'s ``[knotmm]`` records it
+        (``integrator_choice`` when ``run.integrator = "auto"``).
+    """
+
+    config: RunConfig
+    template: TemplateSpec
+    model: ChainModel
+    stepping: Stepping
+    placement: Placement
+    resources: RunResources
+    output: Output
+    n_beads: int
+    reasons: Mapping[str, str] = field(default_factory=dict)
+
+
+@dataclass
+class PreparedRun:
+    """A plan and what it built: the checked template and its Simulation (not yet run)."""
+
+    plan: RunPlan
+    template: Any
+    simulation: Simulation
+
+
+def prepare(cfg: RunConfig, identify: str = "now") -> PreparedRun:
+    """Resolve ``cfg`` into a :class:`RunPlan` and build what it decided (module docstring).
+
+    Parameters
+    ----------
+    cfg : RunConfig
+        A validated run configuration.
+    identify : {"now", "later", "skip"}
+        When the template's knot type is identified
+        (:func:`knotmm.shapes.builder.build_template`).
+
+    Returns
+    -------
+    PreparedRun
+
+    Raises
+    ------
+    ConfigError, TemplateError, TrajectoryFileError
+        What ``knotmm run`` refuses before it writes anything.
+    """
+    from knotmm.shapes.builder import build_template
+
+    stepping = Stepping.of(cfg)
+    reason = _peclet_reason(cfg, stepping.integrator)
+    by_stiffness = cfg["run.integrator"] == AUTO and not math.isfinite(stepping.peclet)
+    # built once: checks the integrator against run.peclet before the template
+    integrator = registry.integrator_from_config(cfg)
+    check_stop_on_change(cfg)
+    resources = RunResources.of(cfg)
+    template = build_template(cfg, identify=identify, resources=resources)
+    n_beads = int(template.positions.shape[0])
+    stepping = replace(stepping, noise_method=resources.noise_method(n_beads))
+    record = cfg.replace({**stepping.record, **template.resolved})
+    sim = Simulation.from_config(record, template.positions, layout=template.layout,
+                                 integrator=integrator)
+    if by_stiffness:
+        choice, reason = _stiffness_choice(sim)
+        if choice != stepping.integrator:
+            stepping = replace(stepping, integrator=choice)
+            record = record.replace({"run.integrator": choice})
+            # the engine already chosen (and warned about) when the new integrator has it
+            engine = sim.engine if sim.engine in REGISTRY[choice].engines else None
+            sim = Simulation.from_config(record, template.positions, engine=engine,
+                                         layout=template.layout,
+                                         integrator=stepping.make_integrator())
+    plan = RunPlan(
+        config=record,
+        template=TemplateSpec.of(cfg),
+        model=sim.model,
+        stepping=stepping,
+        placement=Placement.of(sim, record),
+        resources=resources,
+        output=Output.of(record),
+        n_beads=n_beads,
+        reasons=MappingProxyType({"integrator_choice": reason} if reason else {}),
+    )
+    return PreparedRun(plan, template, sim)
+
+
+def make_plan(cfg: RunConfig) -> RunPlan:
+    """The :class:`RunPlan` of ``cfg`` alone (:func:`prepare`, the template's knot type not
+    identified); what it built is dropped."""
+    return prepare(cfg, identify="skip").plan
+
+
+def _peclet_reason(cfg: RunConfig, name: str) -> str | None:
+    """Why ``run.integrator = "auto"`` took ``name`` at a finite Peclet number (None: named,
+    or decided by the stiffness at ``Pe = inf``)."""
+    if cfg["run.integrator"] != AUTO or not math.isfinite(cfg["run.peclet"]):
+        return None
+    return (f"auto at run.peclet = {cfg['run.peclet']:g}: {name}, adaptive Brownian "
+            f"steps (fixed steps break down at close steric contacts at Pe <~ 1)")
+
+
+def _stiffness_choice(sim: Simulation) -> tuple[str, str]:
+    """``run.integrator = "auto"`` at ``Pe = inf``: the integrator by the chain's stiffness
+    at the start (one probe, :meth:`Simulation.stiffness`), and why."""
+    stiffness = sim.stiffness()
+    choice = auto_deterministic(stiffness)
+    log.info("run.integrator auto: stiffness %.4g / tau_d -> %s", stiffness, choice)
+    return choice, (f"auto at run.peclet = inf: {choice}, the chain's stiffness (RKC's "
+                    f"spectral radius at the start) is {stiffness:.4g} / tau_d "
+                    f"({'above' if choice == 'rkc2' else 'at most'} {AUTO_STIFFNESS:g})")
