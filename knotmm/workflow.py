@@ -408,12 +408,16 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
     z0 = float(facts.get("start_z", sim.positions[:, 2].mean()))
     steps0 = sim.currentStep
     try:
-        with writing(directory / TRAJECTORY_FILE):
-            dcd = DCDReporter(directory / TRAJECTORY_FILE, frame_interval, sim.topology,
-                              append=resuming, first_index=counters["frames"])
-        with writing(directory / OBSERVABLES_FILE):
-            obs = ObservablesReporter(directory / OBSERVABLES_FILE, obs_interval,
-                                      append=resuming, first_index=counters["rows"])
+        try:
+            with writing(directory / TRAJECTORY_FILE):
+                dcd = DCDReporter(directory / TRAJECTORY_FILE, frame_interval, sim.topology,
+                                  append=resuming, first_index=counters["frames"])
+            with writing(directory / OBSERVABLES_FILE):
+                obs = ObservablesReporter(directory / OBSERVABLES_FILE, obs_interval,
+                                          append=resuming, first_index=counters["rows"])
+        except OutputError as exc:  # a write failure, not bad input: exit 3, resumable
+            raise OutputFault(f"{exc}; free the space (or fix the permissions) and run "
+                              f"knotmm run --resume {directory}") from None
         reporters += [dcd, obs]
         record, positions, recorded, _ = resumed or (None, None, None, None)
         watch = knot_watch(sim, cfg, facts, counters, record, positions)
