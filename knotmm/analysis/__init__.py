@@ -14,7 +14,7 @@ Examples
 
 Modules: :mod:`~knotmm.io.run_data` (loading), :mod:`~knotmm.analysis.window` (steady
 window), :mod:`~knotmm.analysis.spectra`, :mod:`~knotmm.analysis.fit`,
-:mod:`~knotmm.analysis.topology`, :mod:`~knotmm.analysis.plots` (imported on first use),
+:mod:`~knotmm.analysis.knot_types`, :mod:`~knotmm.analysis.plots` (imported on first use),
 :mod:`~knotmm.analysis.body` (torus normal, body
 cylindrical coordinates, flat-torus criterion), :mod:`~knotmm.analysis.detect` (is there a
 swirl?), :mod:`~knotmm.analysis.regimes` and :mod:`~knotmm.analysis.regime_report` (regime
@@ -28,10 +28,10 @@ from knotmm.analysis.core import ANALYSIS_FILE, analyze, analyze_run
 from knotmm.analysis.detect import SwirlDetection, detect_swirl
 from knotmm.analysis.fit import ScaledCoordinates, VortexFit, fit_vortex_knot, scaled_coordinates
 from knotmm.analysis.geometry import Cylindrical, cylindrical, winding_numbers
+from knotmm.analysis.knot_types import KnotTypes, handedness, knot_types, rotation_sense
 from knotmm.analysis.replicas import analyze_sweep
 from knotmm.analysis.result import AnalysisResult, format_table
 from knotmm.analysis.spectra import SpectralPeak, Spectrum, rotation_spectrum, swirl_spectrum
-from knotmm.analysis.topology import KnotTypes, handedness, knot_types, rotation_sense
 from knotmm.analysis.window import Window, steady_window
 from knotmm.io.run_data import RunData, load_run
 

@@ -4,7 +4,7 @@ Every run gets the knot type it recorded, the sedimentation speed and the shape 
 :mod:`knotmm.analysis.shape` (Rg, its part perpendicular to gravity, asphericity, ACN,
 writhe: window means with block-bootstrap errors, series in ``analysis_shape.csv``). The
 torus formulas (p, q, ``N l0 / (2 pi p)``) and the vortex-knot fit are made only for a torus
-knot (:func:`knotmm.analysis.topology.run_knot`) in a flat-torus window, with a note
+knot (:func:`knotmm.analysis.knot_types.run_knot`) in a flat-torus window, with a note
 otherwise.
 
 The regime checks (:mod:`knotmm.analysis.regimes`) sit between the steady window and the
@@ -25,6 +25,14 @@ import numpy as np
 
 from knotmm.analysis.fit import fit_vortex_knot
 from knotmm.analysis.geometry import cylindrical, winding_numbers
+from knotmm.analysis.knot_types import (
+    KnotTypes,
+    describe_changes,
+    handedness,
+    knot_types,
+    rotation_sense,
+    run_knot,
+)
 from knotmm.analysis.regime_report import (
     body_fit_coordinates,
     regime_keys,
@@ -35,14 +43,6 @@ from knotmm.analysis.regimes import assess
 from knotmm.analysis.result import AnalysisResult
 from knotmm.analysis.shape import SHAPE_FILE, chains_of, shape_series
 from knotmm.analysis.spectra import check_time_scale, rotation_spectrum, swirl_spectrum
-from knotmm.analysis.topology import (
-    KnotTypes,
-    describe_changes,
-    handedness,
-    knot_types,
-    rotation_sense,
-    run_knot,
-)
 from knotmm.analysis.window import MIN_FRAMES, steady_window
 from knotmm.errors import ConfigError
 from knotmm.io.atomic import write_text_atomic
@@ -123,8 +123,8 @@ def analyze(
         check_time_scale(float(data.frame_interval),
                          float(data.times[-1] - data.times[0] + data.frame_interval))
     chains = chains_of(data)
-    if len(chains) > 1:  # each chain as a run of its own, and the system (analysis.system)
-        from knotmm.analysis.system import analyze_system
+    if len(chains) > 1:  # each chain as a run of its own, and the system (analysis.chains)
+        from knotmm.analysis.chains import analyze_system
 
         if p is not None or q is not None:
             raise ConfigError("--p/--q apply to one chain; this run has "

@@ -34,12 +34,12 @@ TIME_AXIS = (
 
 
 def shared_knot_cache():
-    """An ``identify`` for :func:`knotmm.analysis.topology.knot_types` that remembers frames.
+    """An ``identify`` for :func:`knotmm.analysis.knot_types.knot_types` that remembers frames.
 
     The scan for a change of knot type and the identification at the window's ends check
     mostly the same frames; with one memo each frame is identified once.
     """
-    from knotmm.analysis.topology import identify_signed
+    from knotmm.analysis.knot_types import identify_signed
 
     memo: dict[bytes, str | None] = {}
 

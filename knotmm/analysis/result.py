@@ -12,10 +12,10 @@ import numpy as np
 
 from knotmm.analysis.fit import VortexFit
 from knotmm.analysis.geometry import Cylindrical
+from knotmm.analysis.knot_types import KnotTypes, RunKnot, describe_changes
 from knotmm.analysis.regime_report import tilt_row
 from knotmm.analysis.shape import SHAPE_FILE, ShapeSeries
 from knotmm.analysis.spectra import Spectrum
-from knotmm.analysis.topology import KnotTypes, RunKnot, describe_changes
 from knotmm.analysis.window import Window
 from knotmm.io.run_data import RunData
 
@@ -69,7 +69,7 @@ class AnalysisResult:
         The torus knot T(p, q) of the formulas; None for any other knot, a link or an open
         chain (``p_source`` then says ``"not a torus knot"``).
     knot : RunKnot or None
-        The run's knot as it recorded it (:func:`knotmm.analysis.topology.run_knot`).
+        The run's knot as it recorded it (:func:`knotmm.analysis.knot_types.run_knot`).
     shape : ShapeSeries or None
         Rg, Rg perpendicular to gravity, asphericity, ACN and writhe over the window
         (:mod:`knotmm.analysis.shape`); their window means are the JSON keys of those names,
@@ -420,7 +420,7 @@ def _rows(result: AnalysisResult) -> tuple[list[tuple[str, str]], list[str]]:
 
 
 def _system_rows(d: dict) -> list[tuple[str, str]]:
-    """One row per chain and per pair of a system of chains (:mod:`knotmm.analysis.system`)."""
+    """One row per chain and per pair of a system of chains (:mod:`knotmm.analysis.chains`)."""
     rows = []
     for c in d.get("chains") or []:
         speed = _fmt(c.get("sedimentation_velocity"), c.get("sedimentation_velocity_uncertainty"))

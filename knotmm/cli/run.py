@@ -94,7 +94,7 @@ def knot_lines(facts: dict) -> list[str]:
     """
     from knotmm.engine.knot_checks import checks_not_made
 
-    # the phrase of knotmm.analysis.topology.describe_changes, without importing the analysis
+    # the phrase of knotmm.analysis.knot_types.describe_changes, without importing the analysis
     # (half a second after the run, when a Ctrl-C would be taken for an interrupted run)
     changes = [f"{c['from']} -> {c['to']} at t = {float(c['time']):g}"
                for c in facts.get("knot_type_changes", []) or []]

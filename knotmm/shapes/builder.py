@@ -46,7 +46,7 @@ from knotmm.shapes.curves import braid_curve, circle_curve, torus_curve
 from knotmm.shapes.geometry import TooFewBeadsError, mirror_image, place_on_curve
 from knotmm.shapes.knotinfo import TORUS_NAMES, named_knot_word, resolve_name, symmetry_type
 from knotmm.shapes.resources import RunResources, check_memory
-from knotmm.shapes.systems import build_chains, build_link, build_open, is_link, is_open
+from knotmm.shapes.system_builders import build_chains, build_link, build_open, is_link, is_open
 from knotmm.shapes.template import PendingKnotCheck, Template
 from knotmm.shapes.validation import (
     RUN_FILE_KEYS,
@@ -311,7 +311,7 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
     A run file's ``[[chains]]`` (several chains in one fluid), a link (a torus link, a
     closed braid of several components, a LinkInfo name) and an open filament
     (``knot.closed = false``; kinds ``straight``, ``arc``, ``helix``) are built by
-    :mod:`knotmm.shapes.systems`; the returned template then has a ``layout`` of its
+    :mod:`knotmm.shapes.system_builders`; the returned template then has a ``layout`` of its
     chains and, for several chains, their own templates as ``parts``.
 
     Parameters

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from knotmm.analysis.chains import axis_angles, centre_distances
 from knotmm.analysis.core import analyze
-from knotmm.analysis.system import axis_angles, centre_distances
 from knotmm.io.run_data import RunData
 
 
