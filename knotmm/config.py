@@ -72,7 +72,8 @@ class Key:
     allow_inf : bool, optional
         Whether ``inf`` is valid (float keys).
     why : str, optional
-        The reason for the range, told with a value outside it (``knotmm.limits``).
+        The reason for the limit from ``knotmm.limits``, told with a value past it: the upper
+        bound, or the lower one of a key without an upper bound (``run.peclet``).
     """
 
     kind: str
@@ -327,12 +328,13 @@ def _check_value(dotted: str, key: Key, value: Any) -> Any:
             raise ConfigError(f"{dotted} = {shown(value)}: expected {expected} (finite)")
         value = [float(v) for v in value]
     if key.kind in ("int", "float"):
-        why = f" ({key.why})" if key.why else ""
+        why = f" ({key.why})" if key.why else ""  # the limit's: the upper bound's, if any
+        low = "" if key.maximum is not None else why
         if key.minimum is not None:
             if key.exclusive_minimum and not value > key.minimum:
-                raise ConfigError(f"{dotted} = {shown(value)}: must be > {key.minimum:g}{why}")
+                raise ConfigError(f"{dotted} = {shown(value)}: must be > {key.minimum:g}{low}")
             if not key.exclusive_minimum and not value >= key.minimum:
-                raise ConfigError(f"{dotted} = {shown(value)}: must be >= {key.minimum:g}{why}")
+                raise ConfigError(f"{dotted} = {shown(value)}: must be >= {key.minimum:g}{low}")
         if key.maximum is not None and not value <= key.maximum:
             raise ConfigError(f"{dotted} = {shown(value)}: must be <= {key.maximum:g}{why}")
     return value

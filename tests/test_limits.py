@@ -70,3 +70,18 @@ def test_a_tiny_first_step_of_an_adaptive_method_is_not_refused():
     cfg = RunConfig.from_dict({"knot": {"beads": 30},
                                "run": {"duration": 2.0, "timestep": 1e-320}})
     assert cfg["run.timestep"] == 1e-320
+
+
+@pytest.mark.parametrize(("data", "reason"), [
+    ({"knot": {"beads": 3}}, "5 digits"),
+    ({"model": {"lj_sigma": -1.0}}, "float32"),
+    ({"run": {"replicas": 0}}, "32-bit"),
+])
+def test_a_value_below_a_natural_lower_bound_gets_no_upper_limits_reason(data, reason):
+    """The limit's reason is told with the limit (beads = 3 was refused "must be >= 4
+    (topology.pdb numbers its atoms with 5 digits)"); Pe's limit is its lower bound."""
+    with pytest.raises(ConfigError) as info:
+        RunConfig.from_dict(data)
+    assert reason not in str(info.value), str(info.value)
+    with pytest.raises(ConfigError, match="diffuses"):
+        RunConfig.from_dict({"run": {"peclet": 1e-12}})

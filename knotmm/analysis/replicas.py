@@ -197,8 +197,9 @@ def analyze_sweep(directory, include_partial: bool = False, **kwargs) -> dict:
         try:
             result = analyze_run(run, **kwargs)
         except OutputError as exc:  # a full or read-only disk: the next runs would fail too
-            raise WriteFault(f"{exc}; {REPLICAS_FILE} not rewritten (an earlier one is kept): "
-                             f"make room and run knotmm analyze {str(root)!r} again") from None
+            kept = " (the earlier one is kept)" if (root / REPLICAS_FILE).exists() else ""
+            raise WriteFault(f"{exc}; {REPLICAS_FILE} not written{kept}: make room and run "
+                             f"knotmm analyze {str(root)!r} again") from None
         except Exception as exc:  # one broken replica must not stop the others
             if state is not None:  # unfinished: its reason, not a failure
                 group["excluded"][run.name] = f"{_why(state)}; not analysed: {exc}"
@@ -223,9 +224,10 @@ def analyze_sweep(directory, include_partial: bool = False, **kwargs) -> dict:
     if not any(g["runs"] for g in groups.values()):
         why = "; ".join(f"{name}: {reason}" for g in groups.values()
                         for name, reason in (*g["excluded"].items(), *g["failed"].items()))
+        kept = " (the earlier one is kept)" if (root / REPLICAS_FILE).exists() else ""
         raise TrajectoryFileError(
-            f"{str(root)!r}: no run can be averaged ({why}); {REPLICAS_FILE} not written (an "
-            f"earlier one is kept): analyse again when the runs have finished"
+            f"{str(root)!r}: no run can be averaged ({why}); {REPLICAS_FILE} not written{kept}: "
+            f"analyse again when the runs have finished"
         )
     points = {
         name: {

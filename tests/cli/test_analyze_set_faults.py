@@ -314,3 +314,15 @@ def test_a_full_disk_leaves_no_empty_plot(tmp_path, capsys, monkeypatch):
     assert left == [], left
     assert _temporaries(run) == []
     assert (run / "analysis.json").read_text() == '{"earlier": true}\n'
+
+
+def test_nothing_to_average_claims_no_earlier_file_that_was_not_there(tmp_path, capsys):
+    """The refusal said "(an earlier one is kept)" with no replicas.json in the directory."""
+    root = tmp_path / "set"
+    root.mkdir()
+    _record(root, 2)
+    _replica(root, 0, 6.0, status="interrupted", reached=20.0)
+    code, out, err = _call(["analyze", str(root), *ANALYZE], capsys)
+    assert code == 2, (out, err)
+    assert "not written" in err and "kept" not in err, err
+    assert not (root / "replicas.json").exists()
