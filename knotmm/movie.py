@@ -8,8 +8,9 @@ Each frame is drawn with matplotlib's Agg canvas (no display needed) in three pa
 
 all centred on the chain's centre of mass, so the camera falls with the knot; the distance
 fallen and the time are written on the frame. Beads are drawn as discs of half a bead
-diameter (the model's beads overlap, l0 = 0.6 d: full-size discs would hide the strands), the
-ring as a line, and one *tracer* bead in a distinct colour with a short trail
+diameter (the model's beads overlap, l0 = 0.6 d: full-size discs would hide the strands),
+each chain as a line (a ring closed, an open chain not; one colour per chain when there
+are several), and one *tracer* bead in a distinct colour with a short trail
 of its recent positions (relative to the centre of mass), which makes the swirl visible.
 
 The frames are encoded as MP4 (H.264) when the optional extra ``imageio-ffmpeg`` is
@@ -39,7 +40,9 @@ from knotmm.io.rundir import check_output_file, writing_output
 from knotmm.limits import MAX_DPI
 from knotmm.progress import Progress
 
-__all__ = ["MovieResult", "make_movie", "render_frames", "mp4_available", "MAX_AUTO_FRAMES"]
+__all__ = [
+    "MovieResult", "make_movie", "render_frames", "still", "mp4_available", "MAX_AUTO_FRAMES",
+]
 
 log = logging.getLogger(__name__)
 
@@ -114,12 +117,21 @@ class _Scene:
         trail: int,
         dpi: float,
         title: str,
+        layout=None,
     ):
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
+        from knotmm.analysis.drawing import bead_colors
+
         self.tracer = tracer
         self.trail = trail
+        n = positions.shape[1]
+        # the chains drawn: one ring of all the beads unless a layout says otherwise
+        self.chains = ([(slice(0, n), True)] if layout is None else
+                       list(zip(layout.slices(), layout.closed, strict=True)))
+        several = len(self.chains) > 1  # then one colour per chain, as view.vmd
+        colors = bead_colors(layout, n) if several else None
         rel = positions - com[:, None, :]
         half = float(np.max(np.abs(rel))) + 0.8  # every frame fits, plus a bead's margin
         self.half = half
@@ -183,36 +195,46 @@ class _Scene:
 
         self.lines, self.beads, self.tracers, self.trails = [], [], [], []
         self.ax3, self.side, self.top = ax3, side, top
-        (l3,) = ax3.plot([], [], [], "-", color=_LINE, lw=1.0, alpha=0.7)
-        (b3,) = ax3.plot([], [], [], "o", ms=ms3, color=_BEAD, mec="none", alpha=0.85)
+        self._artists3, self._artists2 = [], [[], []]
+        for sl, _ in self.chains:
+            line_c, bead_c = (colors[sl.start], colors[sl.start]) if several else (_LINE, _BEAD)
+            (l3,) = ax3.plot([], [], [], "-", color=line_c, lw=1.0, alpha=0.7)
+            (b3,) = ax3.plot([], [], [], "o", ms=ms3, color=bead_c, mec="none", alpha=0.85)
+            self._artists3.append((l3, b3))
+            for k, ax in enumerate((side, top)):
+                (line,) = ax.plot([], [], "-", color=line_c, lw=1.0, alpha=0.7, zorder=2)
+                (beads,) = ax.plot([], [], "o", ms=ms, color=bead_c, mec="none", alpha=0.75,
+                                   zorder=3)
+                self._artists2[k].append((line, beads))
         (r3,) = ax3.plot([], [], [], "-", color=_TRACER, lw=1.0, alpha=0.6)
         (t3,) = ax3.plot([], [], [], "o", ms=ms3 * 1.15, color=_TRACER, mec="k", mew=0.5)
-        self._artists3 = (l3, b3, r3, t3)
-        self._artists2 = []
+        self._tracer3 = (r3, t3)
+        self._tracer2 = []
         for ax in (side, top):
-            (line,) = ax.plot([], [], "-", color=_LINE, lw=1.0, alpha=0.7, zorder=2)
-            (beads,) = ax.plot([], [], "o", ms=ms, color=_BEAD, mec="none", alpha=0.75, zorder=3)
             (trail_line,) = ax.plot([], [], "-", color=_TRACER, lw=1.2, alpha=0.6, zorder=4)
             (tr,) = ax.plot([], [], "o", ms=ms * 1.15, color=_TRACER, mec="k", mew=0.6, zorder=5)
-            self._artists2.append((line, beads, trail_line, tr))
+            self._tracer2.append((trail_line, tr))
 
     def draw(self, rel: np.ndarray, history: np.ndarray, label: str) -> np.ndarray:
         """Draw one frame; ``rel`` (n_beads, 3) and ``history`` (k, 3) relative to the COM.
 
         Returns the RGB image, shape (height, width, 3), uint8.
         """
-        closed = np.vstack([rel, rel[:1]])
-        l3, b3, r3, t3 = self._artists3
-        l3.set_data_3d(closed[:, 0], closed[:, 1], closed[:, 2])
-        b3.set_data_3d(rel[:, 0], rel[:, 1], rel[:, 2])
+        paths = [np.vstack([rel[sl], rel[sl][:1]]) if ring else rel[sl]
+                 for sl, ring in self.chains]  # a ring closes; an open chain does not
+        r3, t3 = self._tracer3
+        for (l3, b3), path, (sl, _) in zip(self._artists3, paths, self.chains, strict=True):
+            l3.set_data_3d(path[:, 0], path[:, 1], path[:, 2])
+            b3.set_data_3d(rel[sl, 0], rel[sl, 1], rel[sl, 2])
         r3.set_data_3d(history[:, 0], history[:, 1], history[:, 2])
         tb = rel[self.tracer]
         t3.set_data_3d([tb[0]], [tb[1]], [tb[2]])
-        for (line, beads, trail_line, tr), (i, j) in zip(
-            self._artists2, ((0, 2), (0, 1)), strict=True
+        for artists, (trail_line, tr), (i, j) in zip(
+            self._artists2, self._tracer2, ((0, 2), (0, 1)), strict=True
         ):
-            line.set_data(closed[:, i], closed[:, j])
-            beads.set_data(rel[:, i], rel[:, j])
+            for (line, beads), path, (sl, _) in zip(artists, paths, self.chains, strict=True):
+                line.set_data(path[:, i], path[:, j])
+                beads.set_data(rel[sl, i], rel[sl, j])
             trail_line.set_data(history[:, i], history[:, j])
             tr.set_data([tb[i]], [tb[j]])
         self.text.set_text(label)
@@ -236,6 +258,7 @@ def render_frames(
     trail: int = 30,
     dpi: float = 80,
     title: str = "",
+    layout=None,
 ):
     """Yield the movie's RGB frames for a trajectory (all frames given are drawn).
 
@@ -251,6 +274,9 @@ def render_frames(
     dpi : float
         Resolution: the frame is 12 x 4.6 inches.
     title : str
+    layout : knotmm.model.layout.ChainLayout, optional
+        The chains: only their bonds are drawn (none between chains, none across an open
+        chain's ends), a colour per chain when there are several. Default: one ring.
 
     Yields
     ------
@@ -259,7 +285,7 @@ def render_frames(
     positions = np.asarray(positions, dtype=np.float64)
     com = positions.mean(axis=1)
     rel = positions - com[:, None, :]
-    scene = _Scene(positions, com, tracer, trail, dpi, title)
+    scene = _Scene(positions, com, tracer, trail, dpi, title, layout)
     z0 = com[0, 2]
     for k in range(len(positions)):
         history = rel[max(0, k - trail) : k + 1, tracer]
@@ -327,6 +353,7 @@ def make_movie(
         complete: never a truncated movie under ``out``.
     """
     from knotmm.analysis import load_run
+    from knotmm.analysis.drawing import run_layout
 
     if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
         raise ConfigError(f"--fps {fps!r}: expected a positive number")
@@ -367,8 +394,8 @@ def make_movie(
         out = Path(base) / f"movie.{fmt}"
     check_output_file(out)  # read-only, a directory in the way: one line before rendering
 
-    title = _title(data)
-    frames = render_frames(positions[idx], times[idx], tracer, int(trail), dpi, title)
+    frames = render_frames(positions[idx], times[idx], tracer, int(trail), dpi, _title(data),
+                           run_layout(data))
     write = _write_mp4 if fmt == "mp4" else _write_gif
     kept = f"{str(out)!r} was not written (a file of that name before is left as it was)"
     # the movie goes to a temporary name beside `out` and is renamed when complete, so a
@@ -415,14 +442,37 @@ def _drawn(frames):
 
 
 def _title(data) -> str:
-    kind = data.get("knot.kind")
-    if kind == "torus":
-        knot = f"T({data.get('knot.p')},{data.get('knot.q')})"
-        if data.get("knot.mirror"):
-            knot += " mirrored"
-    else:
-        knot = data.get("knot.name") or kind or "chain"
-    return f"{knot}, N = {data.n_beads}"
+    """The system the movie shows (:func:`knotmm.analysis.drawing.system_title`)."""
+    from knotmm.analysis.drawing import system_title
+
+    return system_title(data)
+
+
+def still(data, frame: int = 0, tracer: int = 0, dpi: float = 80):
+    """One frame of a run's movie as a matplotlib Figure (what :func:`make_movie` draws).
+
+    Parameters
+    ----------
+    data : knotmm.io.run_data.RunData
+        A loaded run (:func:`knotmm.analysis.load_run`).
+    frame : int
+        The trajectory frame.
+    tracer : int
+        The bead drawn in a distinct colour.
+    dpi : float
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from knotmm.analysis.drawing import run_layout
+
+    positions = np.asarray(data.positions, dtype=np.float64)
+    com = positions.mean(axis=1)
+    scene = _Scene(positions, com, tracer, 0, dpi, _title(data), run_layout(data))
+    rel = positions[frame] - com[frame]
+    scene.draw(rel, rel[tracer][None, :], f"t = {data.times[frame]:.1f} $\\tau_d$")
+    return scene.fig
 
 
 def _write_mp4(path: Path, frames, fps: float) -> int:

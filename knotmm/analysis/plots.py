@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from knotmm.analysis.drawing import bead_colors, drawn_bonds, run_layout, system_title
 from knotmm.analysis.fit import scaled_coordinates
 from knotmm.analysis.result import AnalysisResult
 from knotmm.io.atomic import write_atomic
@@ -57,7 +58,7 @@ def _new_axes(projection=None):
 def _shade_window(ax, result: AnalysisResult, labels: bool = False) -> None:
     """Shade the window; mark the radius collapse (red dashes) and knot-type change (purple)."""
     win = result.window
-    if _steady(result):
+    if _steady(result):  # the window the analysis used, steady or not (the title says which)
         ax.axvspan(win.t0, win.t1, color="0.9", zorder=0, lw=0)
     # a collapse "at" the first frame is no event to mark
     if win.collapse_time is not None and win.collapse_time > result.data.times[0]:
@@ -77,6 +78,17 @@ def _shade_window(ax, result: AnalysisResult, labels: bool = False) -> None:
 def _steady(result: AnalysisResult) -> bool:
     """Whether the analysis found a steady window (not the whole run taken for want of one)."""
     return not any("no frame is steady" in n for n in [*result.window.notes, *result.notes])
+
+
+def _collapse_inside(result: AnalysisResult) -> float | None:
+    """The torus collapse time when it falls inside the window (not steady throughout)."""
+    win = result.window
+    t = win.collapse_time
+    return t if t is not None and win.t0 < t < win.t1 else None
+
+
+def _finite(value) -> bool:
+    return value is not None and np.isfinite(value)
 
 
 def _default_beads(n: int, count: int = 3, q: int | None = None) -> list[int]:
@@ -153,9 +165,9 @@ def plot_bead_coordinate(result: AnalysisResult, which: str = "rho", beads=None,
         ax.plot(t, values[:, b], lw=0.9, label=f"bead {b}")
     if which == "rho":
         ax.plot(t, values.mean(axis=1), color="k", lw=1.2, label="mean")
-        ax.axhline(
-            result.major_radius_geometric, color="0.4", ls=":", lw=1, label=r"$N l_0/(2\pi p)$"
-        )
+        if _finite(result.major_radius_geometric):  # defined for a torus knot only
+            ax.axhline(result.major_radius_geometric, color="0.4", ls=":", lw=1,
+                       label=r"$N l_0/(2\pi p)$")
     labels = {"rho": r"$\rho$ [d]", "alpha": r"$\alpha$ [rad]", "z": r"$z - z_{cm}$ [d]"}
     ax.set_ylabel(labels[which])
     ax.legend(loc="upper right", fontsize="x-small", frameon=False, ncol=len(beads) + 2)
@@ -185,7 +197,11 @@ def plot_time_series(result: AnalysisResult, axes=None):
         plot_bead_coordinate(result, which, ax=ax)
     axes[-1].set_xlabel(axis_label("time"))
     win = result.window
-    if _steady(result):
+    collapse = _collapse_inside(result)
+    if _steady(result) and collapse is not None:
+        title = (f"analysis window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded): not steady "
+                 f"throughout, the torus collapses at $t$ = {collapse:g}")
+    elif _steady(result):
         title = (f"steady window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded); "
                  f"end: {win.end_reason}")
     else:
@@ -210,29 +226,39 @@ def plot_spectrum(result: AnalysisResult, ax=None):
         Power (normalised, log scale) against signed frequency in 1/tau_d.
     """
     ax = ax or _new_axes()
+    d = result.to_dict()  # the values the table prints: a number only where measured
     specs = (
         (
             result.swirl_spectrum,
             "tab:blue",
             r"swirl: $(z-\bar z) + i(\rho-\bar\rho)$",
             r"\tau_{swirl}",
+            "tau_swirl",
         ),
-        (result.rotation_spectrum, "tab:red", r"rotation: $e^{i\alpha}$", r"\tau_{rot}"),
+        (result.rotation_spectrum, "tab:red", r"rotation: $e^{i\alpha}$", r"\tau_{rot}",
+         "tau_rot"),
     )
     f_sw = abs(result.swirl_spectrum.peak.frequency)
     f_rot = abs(result.rotation_spectrum.peak.frequency)
     f_max = min(max(3.0 * f_sw, 3.0 * f_rot), 0.5 / result.data.frame_interval)
-    for spec, color, label, tau in specs:
+    for spec, color, label, tau, key in specs:
         keep = np.abs(spec.frequencies) <= f_max
         peak = spec.peak
-        text = (f"${tau}$ = {float(f'{peak.period:.4g}'):g} $\\pm$ "
-                f"{float(f'{peak.period_uncertainty:.2g}'):g} "
-                f"$\\tau_d$")
+        value, err = d.get(key), d.get(f"{key}_uncertainty")
+        marked = True
         if spec.name == "swirl" and not result.swirl_detected:
             text = "no swirl detected: dashes at the highest point"
+        elif value is None:
+            text, marked = f"${tau}$ n/a (not measured)", False
+        else:
+            text = f"${tau}$ = {float(f'{value:.4g}'):g}"
+            if err is not None:
+                text += f" $\\pm$ {float(f'{err:.2g}'):g}"
+            text += " $\\tau_d$"
         ax.semilogy(spec.frequencies[keep], spec.power[keep], color=color, lw=1,
                     label=f"{label}; {text}")
-        ax.axvline(peak.frequency, color=color, ls="--", lw=0.8)
+        if marked:
+            ax.axvline(peak.frequency, color=color, ls="--", lw=0.8)
     ax.set_ylim(1e-6, 3.0)
     ax.set_xlim(-f_max, f_max)
     ax.set_xlabel(axis_label("frequency") + " (> 0: counterclockwise seen from above)")
@@ -323,11 +349,24 @@ def plot_collapse(
     return ax
 
 
-def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = "side", ax=None):
-    """The chain at one frame, in the centre-of-mass frame: side, top or 3D view.
+def _square_limits(ax, horizontal, vertical, minimum_half: float = 1.0) -> None:
+    """Equal spans on both axes, centred on the beads, at least ``2 minimum_half`` d wide
+    (a straight rod seen end-on or edge-on is no zero-height strip)."""
+    half = max(0.5 * float(np.ptp(horizontal)), 0.5 * float(np.ptp(vertical)), minimum_half)
+    half += 0.6  # a bead's margin
+    ch = 0.5 * (float(np.max(horizontal)) + float(np.min(horizontal)))
+    cv = 0.5 * (float(np.max(vertical)) + float(np.min(vertical)))
+    ax.set_xlim(ch - half, ch + half)
+    ax.set_ylim(cv - half, cv + half)
 
-    In the side and top views (orthographic projections on 2D axes) nearer strands are
-    drawn over farther ones, so crossings read correctly; beads are coloured by index.
+
+def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = "side", ax=None):
+    """The chains at one frame, in the centre-of-mass frame: side, top or 3D view.
+
+    Only the bonds of the run's layout are drawn (:func:`run_layout`): none between chains,
+    none across an open chain's ends. In the side and top views (orthographic projections on
+    2D axes) nearer strands are drawn over farther ones, so crossings read correctly; beads
+    are coloured as ``view.vmd`` colours them (:func:`bead_colors`).
 
     Parameters
     ----------
@@ -336,8 +375,9 @@ def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = 
         Default: the middle of the window.
     view : {"side", "top", "3d"}
         ``side``: x-z plane seen from -y (gravity points down the page); ``top``: x-y plane
-        seen from above (counterclockwise on the page is counterclockwise seen from above);
-        ``3d``: a perspective view (``ax`` must then be a 3D Axes).
+        seen from above (counterclockwise on the page is counterclockwise seen from above;
+        equal aspect, at least 3.2 d each way); ``3d``: a perspective view (``ax`` must then
+        be a 3D Axes).
     ax : matplotlib Axes, optional
 
     Returns
@@ -352,12 +392,16 @@ def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = 
     x = result.data.positions[frame]
     x = x - x.mean(axis=0)
     n = len(x)
-    colors = np.linspace(0.0, 1.0, n, endpoint=False)
+    layout = run_layout(result.data)
+    colors = bead_colors(layout, n)
+    several = layout is not None and layout.n_chains > 1
     t = result.data.times[frame]
     if view == "3d":
-        ring = np.vstack([x, x[:1]])
-        ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color="0.3", lw=1)
-        ax.scatter(*x.T, c=colors, cmap="viridis", s=18, depthshade=True)
+        for c, sl in enumerate(layout.slices() if layout is not None else []):
+            path = np.vstack([x[sl], x[sl][:1]]) if layout.closed[c] else x[sl]
+            line_color = colors[sl.start] if several else "0.3"
+            ax.plot(path[:, 0], path[:, 1], path[:, 2], color=line_color, lw=1)
+        ax.scatter(*x.T, c=colors, s=18, depthshade=True)
         half = float(np.abs(x).max()) * 1.05
         for setter in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
             setter(-half, half)
@@ -368,28 +412,24 @@ def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = 
         ax.set_zlabel(r"$z$ [$d$]")
         ax.set_title(f"$t$ = {t:g} $\\tau_d$ ($z$ up)", fontsize="medium")
         return ax
-    import matplotlib
-
-    cmap = matplotlib.colormaps["viridis"]
     horizontal, vertical, depth = (x[:, 0], x[:, 2], -x[:, 1]) if view == "side" else x.T
-    nxt = (np.arange(n) + 1) % n
-    prev = (np.arange(n) - 1) % n
-    # painter's order: segments by mean depth, each bead just above its two segments
-    seg_z = 2.0 + 2.0 * np.argsort(np.argsort(0.5 * (depth + depth[nxt]))) / n
-    bead_z = np.maximum(seg_z, seg_z[prev]) + 0.002
+    bonds = drawn_bonds(layout)
+    # painter's order: bonds by mean depth, each bead just above its bonds
+    rank = np.argsort(np.argsort(0.5 * (depth[bonds[:, 0]] + depth[bonds[:, 1]])))
+    seg_z = 2.0 + 2.0 * rank / max(len(bonds), 1)
+    bead_z = np.full(n, 2.0)
+    for end in (0, 1):
+        np.maximum.at(bead_z, bonds[:, end], seg_z)
+    bead_z += 0.002
+    for k, (i, j) in enumerate(bonds):
+        xs, ys = horizontal[[i, j]], vertical[[i, j]]
+        line_color = colors[i] if several else "0.25"
+        ax.plot(xs, ys, color="white", lw=4.0, solid_capstyle="butt", zorder=seg_z[k])
+        ax.plot(xs, ys, color=line_color, lw=1.4, solid_capstyle="round",
+                zorder=seg_z[k] + 0.001)
     for i in range(n):
-        xs, ys = horizontal[[i, nxt[i]]], vertical[[i, nxt[i]]]
-        ax.plot(xs, ys, color="white", lw=4.0, solid_capstyle="butt", zorder=seg_z[i])
-        ax.plot(xs, ys, color="0.25", lw=1.4, solid_capstyle="round", zorder=seg_z[i] + 0.001)
-        ax.plot(
-            horizontal[i],
-            vertical[i],
-            "o",
-            ms=4.5,
-            mec="none",
-            color=cmap(colors[i]),
-            zorder=bead_z[i],
-        )
+        ax.plot(horizontal[i], vertical[i], "o", ms=4.5, mec="none", color=colors[i],
+                zorder=bead_z[i])
     ax.set_aspect("equal")
     ax.set_xlabel(r"$x$ [$d$]")
     if view == "side":
@@ -407,6 +447,7 @@ def plot_snapshot(result: AnalysisResult, frame: int | None = None, view: str = 
         ax.set_ylim(vertical.min() - pad, vertical.max() + pad)
     else:
         ax.set_ylabel(r"$y$ [$d$]")
+        _square_limits(ax, horizontal, vertical)
         sense = f", rotating {result.rotation_sense}" if result.rotation_sense else ""
         ax.set_title(f"seen from above{sense}", fontsize="medium")
     return ax
@@ -428,8 +469,10 @@ def save_plots(result: AnalysisResult, directory, dpi: int = 150) -> list[Path]:
     out = Path(directory)
     written = []
 
+    title = system_title(result.data, result.to_dict())
     fig = Figure(figsize=(8, 9), layout="constrained")
     plot_time_series(result, axes=fig.subplots(4, 1, sharex=True))
+    fig.suptitle(title)
     written.append(_save(fig, out / PLOT_FILES["timeseries"], dpi))
 
     fig = Figure(figsize=(8, 4.5), layout="constrained")
@@ -450,6 +493,7 @@ def save_plots(result: AnalysisResult, directory, dpi: int = 150) -> list[Path]:
     plot_snapshot(result, view="3d", ax=fig.add_subplot(grid[0], projection="3d"))
     plot_snapshot(result, view="side", ax=fig.add_subplot(grid[1]))
     plot_snapshot(result, view="top", ax=fig.add_subplot(grid[2]))
+    fig.suptitle(title)
     written.append(_save(fig, out / PLOT_FILES["snapshot"], dpi))
     return written
 
