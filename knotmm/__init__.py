@@ -12,13 +12,19 @@ The public API (stable names)::
 Each name is imported on first use, so ``import knotmm`` stays cheap.
 """
 
-from importlib import import_module
-from importlib.metadata import PackageNotFoundError, version
 
-try:
-    __version__ = version("knotmm")
-except PackageNotFoundError:  # pragma: no cover - running from a source tree
-    __version__ = "0.0.0+unknown"
+
+def _installed_version() -> str:
+    """knotmm's version as installed (its distribution's metadata)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("knotmm")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "0.0.0+unknown"
+
+
+__version__ = _installed_version()
 
 #: public name -> the module that owns it
 _PUBLIC = {
@@ -38,10 +44,17 @@ def __getattr__(name: str):
     owner = _PUBLIC.get(name)
     if owner is None:
         raise AttributeError(f"module 'knotmm' has no attribute {name!r}")
+    from importlib import import_module
+
     value = getattr(import_module(owner), name)
     globals()[name] = value
     return value
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_PUBLIC))
+    """The public names only (``__all__``: the API and ``__version__``), as ``dir`` shows them.
+
+    The module's helpers (``_PUBLIC``, the version lookup) are private, so that ``dir`` and
+    tab completion show the API.
+    """
+    return sorted(__all__)

@@ -31,7 +31,7 @@ LAYERS = [
     {"orbit"},
     {"sweep"},
     {"movie"},
-    {"cli"},
+    {"cli", "__main__"},
 ]
 LAYER_OF = {name: i for i, group in enumerate(LAYERS) for name in group}
 MAX_LINES = 600

@@ -29,6 +29,8 @@ log = logging.getLogger("knotmm.cli")
 
 #: Sub-command name -> module under knotmm.cli.
 COMMANDS = ("run", "template", "analyze", "orbit", "sweep", "movie")
+#: Other spellings of a sub-command (alias -> command): the docs' British ``analyse``.
+ALIASES = {"analyse": "analyze"}
 
 
 def common_options() -> argparse.ArgumentParser:
@@ -47,15 +49,95 @@ def common_options() -> argparse.ArgumentParser:
     return common
 
 
+def version_report() -> str:
+    """What ``knotmm --version`` prints: the installation, as OpenMM's ``testInstallation``.
+
+    knotmm's version and Python's; OpenMM's version; whether the compiled RPY plugin loaded
+    (:func:`knotmm.plugin.available`) or why not (:func:`knotmm.plugin.load_error`); the
+    OpenMM platforms that loaded, and the platform libraries that failed to load.
+    """
+    import platform
+    import re
+
+    import openmm
+
+    from knotmm import plugin
+
+    lines = [f"knotmm {__version__} (Python {platform.python_version()}, {sys.platform})",
+             f"OpenMM {openmm.version.full_version}"]
+    if plugin.available():
+        lines.append(f"plugin: loaded (RPYIntegrator: {', '.join(plugin.METHODS)})")
+    else:
+        why = (plugin.load_error() or "unknown reason").removeprefix("knotmm.plugin: ")
+        lines.append(f"plugin: not loaded ({why}); runs use the Python engine")
+    names = [openmm.Platform.getPlatform(i).getName()
+             for i in range(openmm.Platform.getNumPlatforms())]
+    lines.append(f"platforms: {', '.join(names) or 'none'}")
+    failed: dict[str, list[str]] = {}  # why -> the OpenMM plugin libraries that failed so
+    for failure in openmm.Platform.getPluginLoadFailures():
+        text = " ".join(str(failure).split())
+        m = re.search(r"lib(?:OpenMM)?(\w+)\.(?:so|dylib|dll)\S*: (.*)$", text)
+        name, why = (m.group(1), m.group(2)) if m else ("a plugin", text)
+        failed.setdefault(why, []).append(name)
+    for why, libraries in failed.items():
+        lines.append(f"OpenMM plugins not loaded: {', '.join(libraries)} ({why})")
+    return "\n".join(lines)
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: print :func:`version_report` (imports OpenMM only when asked) and exit."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help=None):
+        super().__init__(option_strings=option_strings, dest=dest, default=default, nargs=0,
+                         help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(version_report())
+        parser.exit()
+
+
+class _Parser(argparse.ArgumentParser):
+    """``knotmm``'s parser: an unknown sub-command's error line says the nearest names."""
+
+    def error(self, message):
+        import difflib
+        import re
+
+        m = re.match(r"argument COMMAND: invalid choice: '(.*?)' \(", message)
+        if m:
+            near = difflib.get_close_matches(m.group(1), [*COMMANDS, *ALIASES], n=3, cutoff=0.6)
+            near = list(dict.fromkeys(ALIASES.get(n, n) for n in near))  # an alias: its command
+            hint = f"did you mean {' or '.join(repr(n) for n in near)}? " if near else ""
+            message = (f"unknown command {m.group(1)!r}: {hint}the commands are "
+                       f"{', '.join(COMMANDS)} (knotmm COMMAND -h for one)")
+        super().error(message)
+
+
+class _Registrar:
+    """The sub-parsers as a sub-command module sees them: its aliases (:data:`ALIASES`) added."""
+
+    def __init__(self, sub):
+        self._sub = sub
+
+    def add_parser(self, name, **kwargs):
+        aliases = [a for a, command in ALIASES.items() if command == name]
+        if aliases:
+            kwargs.setdefault("aliases", aliases)
+        return self._sub.add_parser(name, **kwargs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with every available sub-command."""
     common = common_options()
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="knotmm",
         description="Simulate and analyse knotted filaments sedimenting at low Reynolds number.",
         parents=[common],
     )
-    parser.add_argument("--version", action="version", version=f"knotmm {__version__}")
+    parser.add_argument("--version", action=_VersionAction,
+                        help="show knotmm's and OpenMM's versions, whether the compiled "
+                        "plugin loaded (or why not) and OpenMM's platforms, and exit")
     sub = parser.add_subparsers(
         dest="command",
         metavar="COMMAND",
@@ -69,7 +151,7 @@ def build_parser() -> argparse.ArgumentParser:
             if exc.name != f"knotmm.cli.{name}":
                 raise
             continue
-        module.add_parser(sub)
+        module.add_parser(_Registrar(sub))
     return parser
 
 
@@ -158,6 +240,7 @@ def _dispatch(argv: list[str] | None) -> int:
     try:  # the sub-commands' imports take a second: a stop asked for then is no traceback
         parser = build_parser()
         args = parser.parse_args(argv)
+        args.command = ALIASES.get(args.command, args.command)
     except KeyboardInterrupt:
         print("knotmm: interrupted while starting; nothing was written", file=sys.stderr)
         return 130

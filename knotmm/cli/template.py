@@ -28,7 +28,8 @@ logger = logging.getLogger(__name__)
 
 _KNOT_HELP = (
     "the knot: a name from the tables (3_1, 5_2, 11a_367) or a common name (trefoil, "
-    "figure-eight, cinquefoil, three-twist, stevedore, ...; --list lists them), torus:P,Q "
+    "figure-eight, cinquefoil, three-twist, stevedore, ...; --list lists them), a link (hopf, "
+    "whitehead, borromean, L4a1{1}), torus:P,Q "
     "(e.g. torus:2,3), braid:W (e.g. braid:1,-2,1,-2), or file:PATH (a PDB, or a DCD with "
     "its topology)"
 )
@@ -49,7 +50,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     parser.add_argument("knot", nargs="?", metavar="KNOT", help=_KNOT_HELP)
     parser.add_argument(
-        "--list", action="store_true", help="list the named knots available and exit"
+        "--list", action="store_true", help="list the named knots and links available and exit"
     )
     parser.add_argument(
         "--beads",
@@ -161,6 +162,7 @@ def _print_list(out) -> None:
         print(f"  {name:6s} {list(word)}", file=out)
     common = ", ".join(f"{k} ({v})" for k, v in COMMON_NAMES.items() if v != "0_1")
     print(textwrap.fill(f"common names: {common}", width=96, subsequent_indent="  "), file=out)
+    _print_links(out, knotinfo_available())
     names = [n for n in list_named_knots() if n not in BUILTIN_BRAIDS]
     if not knotinfo_available():
         print(
@@ -181,6 +183,30 @@ def _print_list(out) -> None:
             text, width=96, initial_indent=f"  {family:>4s}: ", subsequent_indent=" " * 8
         )
         print(wrapped, file=out)
+
+
+def _print_links(out, knotinfo: bool) -> None:
+    """The links ``--list`` names: the common ones, and how LinkInfo names are written."""
+    from knotmm.shapes.links import COMMON_LINKS, LINKINFO_NAME  # noqa: PLC0415
+
+    def shown(kind, data):
+        return f"T{data}".replace(" ", "") if kind == "torus" else f"braid {list(data)}"
+
+    print("links (several closed chains; no extra package needed):", file=out)
+    for name, (kind, data) in COMMON_LINKS.items():
+        print(f"  {name:10s} {shown(kind, data)}", file=out)
+    if knotinfo:
+        from database_knotinfo import link_list  # noqa: PLC0415
+
+        count = sum(1 for row in link_list(True)
+                    if LINKINFO_NAME.fullmatch(str(row.get("name", ""))))
+        where = f"{count} oriented links from the LinkInfo tables"
+    else:
+        where = "they need the optional package database_knotinfo: pip install 'knotmm[knots]'"
+    print(textwrap.fill(
+        f"LinkInfo names work too, with the orientation in braces (one 0 or 1 per component "
+        f"after the first): L4a1{{1}}, L5a1{{0}}, L6a4{{0,0}} ({where})",
+        width=96, initial_indent="  ", subsequent_indent="  "), file=out)
 
 
 def _check_out(out: str, overwrite: bool) -> Path:

@@ -13,6 +13,7 @@ The watches' record is kept in every checkpoint and a resumed run continues it f
 
 from __future__ import annotations
 
+import logging
 import time
 
 from knotmm.engine.check_record import KeptIdentifier, json_safe, restore_knot_watch
@@ -34,6 +35,15 @@ __all__ = [
     "record_linking",
     "record_checks",
 ]
+
+log = logging.getLogger(__name__)
+
+#: The note of a run whose knot-type checks are skipped for want of topoly (said once).
+NO_TOPOLY_NOTE = ("note: knot type not checked (neither the template's nor along the run): "
+                  "topoly is not installed, and strands can pass one another in the model, so "
+                  "the knot type may change unseen; pip install 'knotmm[knots]' checks it (or set "
+                  "run.topology_check_interval = 0 to run unchecked)")
+_no_topoly_said = False
 
 
 class TemplateKnotCheck(TimeScheduled):
@@ -110,7 +120,15 @@ def knot_watch(sim, cfg, facts, counters, record=None, positions=None):
     from knotmm.knots.identify import topoly_available
     from knotmm.knots.worker import IsolatedKnotIdentifier
 
-    if not (cfg["run.topology_check_interval"] > 0 and topoly_available()):
+    if not cfg["run.topology_check_interval"] > 0:
+        return None
+    if not topoly_available():  # the core install: said once, at normal verbosity
+        global _no_topoly_said
+        if any(sim.layout.closed):
+            facts["knot_type_watch"] = "not made: topoly is not installed"
+            if not _no_topoly_said:
+                _no_topoly_said = True
+                log.warning(NO_TOPOLY_NOTE)
         return None
     identify = IsolatedKnotIdentifier(chiral=True)
     if not sim.layout.is_single_ring:  # several chains: the type of each ring, in order

@@ -30,6 +30,7 @@ import numpy as np
 from knotmm.config import read_toml
 from knotmm.errors import ConfigError, TrajectoryFileError
 from knotmm.io.dcd import read_dcd
+from knotmm.io.replica_set import REPLICA_SET_FILE, is_replica_set, read_replica_set, replica_index
 from knotmm.io.rundir import RUN_FILE, TOPOLOGY_FILE, TRAJECTORY_FILE
 from knotmm.model.layout import ChainLayout
 from knotmm.units import PS_PER_TAU, angstrom_to_d, d_to_mdtraj
@@ -218,6 +219,8 @@ def _locate(path: Path, topology) -> tuple[Path, Path, Path | None, Path]:
         )
     if path.is_dir():
         traj = _find_one(path, "*.dcd", TRAJECTORY_FILE)
+        if traj is None and is_replica_set(path):
+            raise TrajectoryFileError(_replica_set_message(path))
         if traj is None:
             raise TrajectoryFileError(
                 f"{path}: no {TRAJECTORY_FILE} in this directory (and not exactly one "
@@ -251,6 +254,19 @@ def _locate(path: Path, topology) -> tuple[Path, Path, Path | None, Path]:
             )
     run_file = directory / RUN_FILE
     return traj, top, (run_file if run_file.is_file() else None), directory
+
+
+def _replica_set_message(path: Path) -> str:
+    """The one line for a replica set's directory given where one run is expected."""
+    try:
+        count = int(read_replica_set(path)["replicas"]["count"])
+    except ConfigError:  # a damaged replicas.toml: count the replica directories
+        count = sum(1 for p in path.iterdir()
+                    if p.is_dir() and replica_index(p.name) is not None)
+    which = f"K = 0 ... {count - 1}" if count > 1 else "K = 0"
+    return (f"{path}: this is a replica set of {count} replica{'s' if count != 1 else ''} "
+            f"({REPLICA_SET_FILE}), not one run: give one of them, "
+            f"{path / 'replica_K'} with {which}")
 
 
 def _check_interval(value, what: str) -> float:

@@ -332,8 +332,14 @@ def named_link(name: str, beads: int, bond_length: float = 0.6, minor_radius: fl
                 f"knot.name={name!r}: LinkInfo links need the optional package "
                 f"database_knotinfo: pip install 'knotmm[knots]'"
             ) from None
-        raise TemplateError(f"knot.name={name!r} is not in the LinkInfo tables "
-                            f"(links named like 'L4a1{{1}}')")
+        from database_knotinfo import link_list
+
+        base = key.partition("{")[0]
+        known = [str(r["name"]) for r in link_list(True) if r.get("name_unoriented") == base]
+        hint = (f"{base} is there as {', '.join(known)}: the braces give the orientation, one "
+                f"0 or 1 per component after the first" if known
+                else "links named like 'L4a1{1}'")
+        raise TemplateError(f"knot.name={name!r} is not in the LinkInfo tables ({hint})")
     raise TemplateError(
         f"knot.name={name!r} is not a link name: use {', '.join(COMMON_LINKS)} or a LinkInfo "
         f"name such as 'L4a1{{1}}'"
