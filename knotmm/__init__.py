@@ -13,7 +13,6 @@ Each name is imported on first use, so ``import knotmm`` stays cheap.
 """
 
 
-
 def _installed_version() -> str:
     """knotmm's version as installed (its distribution's metadata)."""
     from importlib.metadata import PackageNotFoundError, version
