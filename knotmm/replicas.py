@@ -55,7 +55,13 @@ from knotmm.io.rundir import (
 from knotmm.plan import prepare
 from knotmm.workflow import OutputFault, RunResult, resume, run
 
-__all__ = ["ReplicaSetResult", "replica_seeds", "resume_replicas", "run_replicas"]
+__all__ = [
+    "ReplicaSetResult",
+    "identical_replicas_note",
+    "replica_seeds",
+    "resume_replicas",
+    "run_replicas",
+]
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +79,28 @@ def replica_seeds(base_seed: int, count: int) -> list[int]:
     """
     children = np.random.SeedSequence(int(base_seed)).spawn(int(count))
     return [int(c.generate_state(1, dtype=np.uint32)[0]) for c in children]
+
+
+def identical_replicas_note(cfg: RunConfig, count: int, what: str = "run.replicas") -> str | None:
+    """The note that ``count`` replicas of ``cfg`` would be identical, or None.
+
+    Replicas differ only by their seeds, which act through the noise (finite ``run.peclet``)
+    and the template's perturbation (``knot.perturbation``); with neither they repeat one
+    run. The one wording, printed as ``knotmm: note:`` by ``knotmm run`` (``run.replicas``)
+    and ``knotmm sweep`` (``seeds``).
+
+    Parameters
+    ----------
+    cfg : RunConfig
+    count : int
+        How many replicas are asked for.
+    what : str
+        The key that asks for them, as the note names it.
+    """
+    if count > 1 and cfg["knot.perturbation"] == 0 and math.isinf(cfg["run.peclet"]):
+        return (f"{what} = {count} but the runs are deterministic (knot.perturbation = 0, "
+                f"run.peclet = inf): the replicas will be identical; set knot.perturbation > 0")
+    return None
 
 
 @dataclass

@@ -43,7 +43,7 @@ from knotmm.analysis.regimes import assess
 from knotmm.analysis.result import AnalysisResult
 from knotmm.analysis.shape import SHAPE_FILE, chains_of, shape_series
 from knotmm.analysis.spectra import check_time_scale, rotation_spectrum, swirl_spectrum
-from knotmm.analysis.window import MIN_FRAMES, steady_window
+from knotmm.analysis.window import MIN_FRAMES, rotation_unmeasured, steady_window
 from knotmm.errors import ConfigError
 from knotmm.io.atomic import write_text_atomic
 from knotmm.io.run_data import RunData, load_run
@@ -242,7 +242,12 @@ def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_sam
             f"({swirl.peak.period:.4g} tau_d, more than half the {length:g} tau_d window; the "
             f"body frame's line: {body_swirl.peak.period:.4g} tau_d): tau_swirl not measured"
         )
-    if rot.peak.period > length and not regime.tilted:
+    # tau_rot only where the window holds enough of a turn (as tau_swirl above)
+    rot_why = rotation_unmeasured(rot.peak.period, rot.peak.period_uncertainty, length)
+    rot_ok = not regime.tilted and rot_why is None
+    if rot_why is not None and not regime.tilted:
+        notes.append(f"{rot_why}: tau_rot and tau_rot/tau_sed not measured")
+    elif rot_ok and rot.peak.period > length:
         notes.append(
             f"the window ({length:g} tau_d) covers {length / rot.peak.period:.0%} of a "
             f"rotation (tau_rot = {rot.peak.period:.4g} tau_d): tau_rot assumes the rotation "
@@ -308,6 +313,15 @@ def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_sam
     })
     if not (detected and regime.toroidal):
         amplitude = float("nan")
+    body_why = rotation_unmeasured(
+        body_rot.peak.period, body_rot.peak.period_uncertainty, length)
+    if body_why is not None:  # the body frame's tau_rot under the same rule
+        for key in ("tau_rot_body", "tau_rot_body_uncertainty", "rotation_frequency_body"):
+            extra[key] = float("nan")
+        if "tau_rot_body" in extra["uncertainties"]:
+            extra["uncertainties"]["tau_rot_body"] = {"value": None, "std_error": None}
+        if rot_ok or regime.tilted:
+            notes.append(f"body frame: {body_why}: tau_rot_body not measured")
 
     return AnalysisResult(
         sedimentation_velocity=velocity,
@@ -318,9 +332,9 @@ def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_sam
         swirl_amplitude=amplitude,
         tau_swirl=swirl.peak.period if period_ok else float("nan"),
         tau_swirl_uncertainty=swirl.peak.period_uncertainty if period_ok else float("nan"),
-        tau_rot=rot.peak.period if not regime.tilted else float("nan"),
-        tau_rot_uncertainty=rot.peak.period_uncertainty if not regime.tilted else float("nan"),
-        rotation_frequency=rot.peak.frequency,
+        tau_rot=rot.peak.period if rot_ok else float("nan"),
+        tau_rot_uncertainty=rot.peak.period_uncertainty if rot_ok else float("nan"),
+        rotation_frequency=rot.peak.frequency if rot_why is None else float("nan"),
         rotation_sense=rotation_sense(rot.peak.frequency)
         if regime.toroidal and not regime.tilted
         else None,

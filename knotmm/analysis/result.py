@@ -77,9 +77,14 @@ class AnalysisResult:
     swirl_amplitude : float
         C, from the vortex-knot fit; NaN (null) without a detected swirl or a flat torus.
     tau_swirl, tau_rot : float
-        Swirl and rotation periods from the spectra (positive), with ``*_uncertainty``.
+        Swirl and rotation periods from the spectra (positive), with ``*_uncertainty``; NaN
+        (null) where not measured, with the reason in ``notes``: ``tau_rot`` (and its ratio)
+        when the window holds less than
+        :data:`~knotmm.analysis.window.MIN_ROTATION_FRACTION` of a rotation or its
+        uncertainty is as large as the period (:func:`~knotmm.analysis.window.rotation_unmeasured`).
     rotation_frequency : float
-        Signed rotation frequency, in 1/tau_d (positive: counterclockwise seen from above).
+        Signed rotation frequency, in 1/tau_d (positive: counterclockwise seen from above);
+        NaN (null) where ``tau_rot`` is not measured for want of a window.
     window : Window
     swirl_spectrum, rotation_spectrum : Spectrum
     fit : VortexFit or None

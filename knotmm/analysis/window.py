@@ -42,6 +42,7 @@ is that far below its steady level (None if it never is).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -51,10 +52,24 @@ from knotmm.analysis.geometry import Cylindrical, cylindrical
 from knotmm.analysis.spectra import swirl_spectrum
 from knotmm.errors import ConfigError
 
-__all__ = ["Window", "steady_window", "window_signals", "longest_run", "MIN_FRAMES"]
+__all__ = [
+    "Window",
+    "steady_window",
+    "window_signals",
+    "longest_run",
+    "rotation_unmeasured",
+    "MIN_FRAMES",
+    "MIN_ROTATION_FRACTION",
+]
 
 #: Fewest frames a window may hold (spectra and fits need several samples per period).
 MIN_FRAMES = 16
+
+#: Smallest part of one rotation a window must hold for tau_rot to be reported (issue 35:
+#: "tau_rot 7189 +- 1.1e+05" came from 0 % of a turn). The examples' READMEs report tau_rot
+#: from 24-76 % of a turn and bracket it as an extrapolation from 4-14 %; a steady rigid
+#: rotation's line is exact to 1 % from a quarter turn.
+MIN_ROTATION_FRACTION = 0.2
 
 _SIGNALS = ("radius", "cross_section", "speed", "tilt")
 _COARSE_TILT = 0.1  # rad
@@ -153,6 +168,34 @@ def window_signals(
     with np.errstate(divide="ignore", invalid="ignore"):
         tilt = np.nan_to_num(2.0 * harmonic / cyl.rho.sum(axis=1))
     return {"radius": radius, "cross_section": cross, "speed": speed, "tilt": tilt}
+
+
+def rotation_unmeasured(period: float, uncertainty: float, length: float) -> str | None:
+    """Why a rotation period is not measured in a window, or None when it is.
+
+    Parameters
+    ----------
+    period, uncertainty : float
+        The rotation spectrum's peak period and its standard error, in tau_d.
+    length : float
+        The window's length, in tau_d.
+
+    Returns
+    -------
+    str or None
+        The reason (for a note) when the window holds less than
+        :data:`MIN_ROTATION_FRACTION` of a rotation or the uncertainty is not smaller than
+        the period; None when the period is measured.
+    """
+    if not (math.isfinite(period) and period > 0):
+        return f"the {length:g} tau_d window shows no rotation"
+    fraction = length / period
+    if fraction < MIN_ROTATION_FRACTION:
+        return (f"the {length:g} tau_d window covers {fraction:.1%} of a rotation "
+                f"(at least {MIN_ROTATION_FRACTION:.0%} needed)")
+    if not (math.isfinite(uncertainty) and uncertainty < period):
+        return "the rotation period's uncertainty is as large as the period itself"
+    return None
 
 
 def _mode_level(values: np.ndarray, half_width: float) -> float:

@@ -172,13 +172,21 @@ SWEEP_COLUMNS = (
 )
 
 
-def _mean_se(stat: dict | None) -> str:
+def _mean_se(stat: dict | None, total: int | None = None) -> str:
+    """A table cell: ``mean +- std_error`` over the point's replicas that measured it.
+
+    When fewer than ``total`` replicas (the point's ``n``) measured the quantity, the cell
+    says over how many (``7.471 (n=1 of 3)``: one replica's value, no error); ``n/a`` when
+    none did.
+    """
+    n = stat["n"] if stat else 0
+    of = f" (n={n} of {total})" if total is not None and n < total else ""
     if not stat or stat["mean"] is None:
-        return "n/a"
+        return "n/a" + of
     text = f"{stat['mean']:.4g}"
     if stat["std_error"] is not None:
         text += f" +- {stat['std_error']:.2g}"
-    return text
+    return text + of
 
 
 def _execute_sweep(args) -> int:
@@ -194,8 +202,9 @@ def _execute_sweep(args) -> int:
     rows = [("point", "n", *SWEEP_COLUMNS)]
     for name, point in summary["points"].items():
         stats = point["statistics"]
+        total = len(point["runs"])
         rows.append(
-            (name, str(len(point["runs"])), *(_mean_se(stats.get(c)) for c in SWEEP_COLUMNS))
+            (name, str(total), *(_mean_se(stats.get(c), total) for c in SWEEP_COLUMNS))
         )
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for row in rows:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from knotmm.config import RunConfig, load_run_file, parse_override
 from knotmm.errors import ConfigError
@@ -141,6 +142,7 @@ def _report(result) -> None:
 def execute(args) -> int:
     """Run and print the knot-type changes and the one-line summary."""
     from knotmm.engine.interrupt import stop_between_steps
+    from knotmm.replicas import identical_replicas_note
     from knotmm.replicas import resume_replicas as resume
     from knotmm.replicas import run_replicas as run
 
@@ -159,6 +161,9 @@ def execute(args) -> int:
             _report(result)
         return 3 if getattr(result, "errors", None) else 0  # a replica broke down
     cfg = config_from_args(args)
+    identical = identical_replicas_note(cfg, int(cfg["run.replicas"]))
+    if identical:
+        print(f"knotmm: note: {identical}", file=sys.stderr)
     with stop_between_steps():
         result = run(cfg, overwrite=args.overwrite, progress=args.progress)
         _report(result)

@@ -64,6 +64,7 @@ from typing import Any
 
 from knotmm.config import RunConfig, read_toml, split_key
 from knotmm.errors import ConfigError
+from knotmm.replicas import identical_replicas_note
 from knotmm.sweep.plan import (
     SweepPoint,
     expand,
@@ -311,17 +312,9 @@ class Sweep:
                 "knot.major_radius of the run.toml is dropped: the template radius follows "
                 "the swept knot.beads"
             )
-        if (
-            options.seeds is not None
-            and options.seeds > 1
-            and base["knot.perturbation"] == 0
-            and "knot.perturbation" not in values
-            and math.isinf(base["run.peclet"])
-        ):
-            notes.append(
-                f"seeds = {options.seeds} but the runs are deterministic (knot.perturbation = 0, "
-                f"run.peclet = inf): the replicas will be identical; set knot.perturbation > 0"
-            )
+        identical = identical_replicas_note(base, options.seeds or 0, "seeds")
+        if identical and "knot.perturbation" not in values:
+            notes.append(identical)
         data_out = copy.deepcopy(dict(data))
         data_out.setdefault("output", {})["directory"] = str(sweep_dir.resolve())
         data_out["sweep"] = copy.deepcopy(dict(table))

@@ -179,7 +179,8 @@ def test_a_replica_that_cannot_start_is_an_output_fault_and_resume_runs_it(
             "--set", "run.replicas=3", "--set", "run.topology_check_interval=0",
             "--set", "output.frame_interval=0.05", "--set", "output.checkpoint_interval=0.1"]
     assert main(argv) == 3  # an output fault, not bad input
-    line = _one_line(capsys)
+    note, line = capsys.readouterr().err.strip().splitlines()  # Pe = inf: identical replicas
+    assert note.startswith("knotmm: note: run.replicas = 3") and "identical" in note, note
     assert line.startswith("knotmm: error: replica 1 ") and "stopped" in line, line
     assert "no space left" in line and f"--resume {root}" in line, line
     assert read_facts(root / "replica_0")["status"] == "finished"
