@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO
 
-__all__ = ["replacing", "write_atomic", "write_text_atomic"]
+__all__ = ["remove_temporaries", "replacing", "write_atomic", "write_text_atomic"]
 
 
 def write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) -> None:
@@ -43,6 +44,11 @@ def write_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) ->
     _remove_stale(path)
 
 
+#: A temporary file of :func:`write_atomic` or :func:`replacing`: ``.NAME.XXXXXXXX.tmp`` or
+#: ``.NAME.XXXXXXXX.tmp.SUFFIX`` (XXXXXXXX: tempfile's random characters).
+_TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp(\.[^.]+)?")
+
+
 def _remove_stale(path: Path) -> None:
     """Remove temporary files of ``path`` that a killed writer left (SIGKILL cannot clean up).
 
@@ -50,10 +56,20 @@ def _remove_stale(path: Path) -> None:
     lock, so no other writer of ``path`` is under way.
     """
     prefix = f".{path.name}."
+    remove_temporaries(path.parent, lambda name: name.startswith(prefix))
+
+
+def remove_temporaries(directory, keep=None) -> None:
+    """Remove the temporary files that killed atomic writers left in ``directory``.
+
+    For a command that has just taken the directory's lock (no writer of its own is under
+    way there); ``keep``, if given, is a predicate on a file name: only the names it accepts
+    are removed.
+    """
     with contextlib.suppress(OSError):
-        for entry in os.scandir(path.parent):
-            rest = entry.name[len(prefix):]
-            if entry.name.startswith(prefix) and ".tmp" in rest and entry.is_file():
+        for entry in os.scandir(directory):
+            if (_TEMPORARY.fullmatch(entry.name) and (keep is None or keep(entry.name))
+                    and entry.is_file(follow_symlinks=False)):
                 with contextlib.suppress(OSError):
                     os.unlink(entry.path)
 

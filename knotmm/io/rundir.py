@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from knotmm.errors import ConfigError, KnotmmError, RunDirectoryError
+from knotmm.io.atomic import remove_temporaries
 
 __all__ = [
     "ANALYSIS_FILE",
@@ -342,6 +343,7 @@ class RunLock:
             os.pwrite(self._fd, f"{os.getpid()}\n".encode(), 0)
         except OSError:
             pass  # a full disk: the lock holds even without the pid written
+        remove_temporaries(self.directory)  # of writers killed in this directory before
 
     def release(self) -> None:
         """Remove the lock file and unlock (idempotent)."""
