@@ -23,7 +23,6 @@ import json
 import os
 import re
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -33,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import test_run_fuzz
-from test_run_fuzz import SEED, SIGNALS, _default_sigint, _kill
+from test_run_fuzz import SEED, SIGNALS, _default_sigint, _kill, _send
 
 from knotmm.cli.main import main
 
@@ -262,11 +261,7 @@ def _check_signal(swirling_run, tmp_path, capsys, command: str, kind: str, index
     try:
         time.sleep(delay)
         if proc.poll() is None:
-            os.kill(proc.pid, signal.SIGINT if kind == "SIGINT2" else getattr(signal, kind))
-            if kind == "SIGINT2":
-                time.sleep(float(rng.uniform(0.0, 0.3)))
-                if proc.poll() is None:
-                    os.kill(proc.pid, signal.SIGINT)
+            _send(proc, kind, rng)
         _, err = proc.communicate(timeout=300)
     finally:
         _kill(proc)

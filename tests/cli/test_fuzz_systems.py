@@ -39,7 +39,6 @@ import errno
 import os
 import re
 import shutil
-import signal
 import subprocess
 import sys
 import time
@@ -50,7 +49,15 @@ import pytest
 import test_fuzz_analyze_sweep
 import test_run_fuzz
 from test_fuzz_analyze_sweep import _temporaries, _whole_json, _whole_pngs
-from test_run_fuzz import _call, _default_sigint, _facts, _kill, _set_status, _status
+from test_run_fuzz import (
+    _call,
+    _default_sigint,
+    _facts,
+    _kill,
+    _send,
+    _set_status,
+    _status,
+)
 
 from knotmm.cli.main import main
 from knotmm.io.dcd import read_dcd
@@ -390,13 +397,7 @@ def _check_signal(reference, tmp_path, capsys, system: str, kind: str, index: in
             assert time.monotonic() < end, f"{case}: no progress in {directory}"
             time.sleep(0.01)
         if proc.poll() is None:
-            if kind == "SIGINT2":
-                os.kill(proc.pid, signal.SIGINT)
-                time.sleep(float(rng.uniform(0.0, 0.3)))
-                if proc.poll() is None:
-                    os.kill(proc.pid, signal.SIGINT)
-            else:
-                os.kill(proc.pid, getattr(signal, kind))
+            _send(proc, kind, rng)
         _, err = proc.communicate(timeout=90)
     finally:
         _kill(proc)

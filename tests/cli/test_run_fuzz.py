@@ -111,6 +111,18 @@ def _call(argv: list[str], capsys, case: str) -> tuple[int, str]:
     return code, err
 
 
+def _send(proc, kind: str, rng) -> None:
+    """Send ``kind`` (a signal's name, or ``"SIGINT2"``: two SIGINTs 0-0.3 s apart, the
+    second only if the process is still alive) to ``proc``."""
+    if kind != "SIGINT2":
+        os.kill(proc.pid, getattr(signal, kind))
+        return
+    os.kill(proc.pid, signal.SIGINT)
+    time.sleep(float(rng.uniform(0.0, 0.3)))
+    if proc.poll() is None:
+        os.kill(proc.pid, signal.SIGINT)
+
+
 def _kill(proc: subprocess.Popen) -> None:
     """End a child process we started, by its pid, and reap it."""
     if proc.poll() is None:
@@ -211,13 +223,7 @@ def _check_signal(tmp_path, capsys, kind: str, index: int, seed: int, duration: 
         if running:
             time.sleep(delay)
             if proc.poll() is None:
-                if kind == "SIGINT2":
-                    os.kill(proc.pid, signal.SIGINT)
-                    time.sleep(float(rng.uniform(0.0, 0.3)))
-                    if proc.poll() is None:
-                        os.kill(proc.pid, signal.SIGINT)
-                else:
-                    os.kill(proc.pid, getattr(signal, kind))
+                _send(proc, kind, rng)
         _, err = proc.communicate(timeout=60)
     finally:
         _kill(proc)
