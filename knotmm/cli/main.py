@@ -93,8 +93,18 @@ class _VersionAction(argparse.Action):
                          help=help)
 
     def __call__(self, parser, namespace, values, option_string=None):
-        print(version_report())
+        try:
+            print(version_report(), flush=True)
+        except BrokenPipeError:  # `knotmm --version | head -1`
+            _drop_stdout()
         parser.exit()
+
+
+def _drop_stdout() -> None:
+    """Standard output's reader has gone (a pager or ``head`` closed early): send the rest to
+    /dev/null, so that Python's flush at exit raises nothing."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
 
 
 class _Parser(argparse.ArgumentParser):
@@ -284,8 +294,7 @@ def _execute(args) -> int:
         code = 130
         return code
     except BrokenPipeError:  # output piped into a pager or `head` that closed early
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
+        _drop_stdout()
         code = 0
         return code
     finally:

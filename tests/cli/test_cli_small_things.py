@@ -198,3 +198,18 @@ def test_a_run_without_topoly_says_so_once_at_normal_verbosity(tmp_path):
 
     facts = read_facts(tmp_path / "set" / "replica_1")
     assert facts["knot_type_watch"] == "not made: topoly is not installed"
+
+
+def test_version_into_a_pipe_closed_early_is_no_traceback():
+    """``knotmm --version | head -1``: the reader closes the pipe after one line; the
+    report's other lines must not end in a BrokenPipeError traceback."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "knotmm", "--version"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before anything was written
+    err = proc.stderr.read().decode()
+    proc.wait(timeout=120)
+    proc.stderr.close()
+    assert "Traceback" not in err and "BrokenPipe" not in err, err
