@@ -177,10 +177,17 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "str", "auto",
             "who integrates: plugin (the compiled knotmm.plugin.RPYIntegrator: every step in "
             "C++, same steps as python for deterministic methods; Cholesky or Lanczos noise; "
-            f"{' and '.join(registry.PLUGIN_PLATFORMS)} platforms), python (the Python "
-            "integrators, the reference), auto (plugin when it is built, Brownian runs too; "
-            "python otherwise and on GPU platforms)",
+            "on every platform it has a kernel for, which knotmm --version lists), python "
+            "(the Python integrators, the reference), auto (plugin when it is built and has "
+            "a kernel on the platform, Brownian runs too; python otherwise)",
             choices=("auto", registry.PLUGIN_ENGINE, registry.PYTHON_ENGINE),
+        ),
+        "precision": Key(
+            "str", "auto",
+            "precision on a device platform (CUDA, HIP, OpenCL): auto (= mixed: "
+            "single-precision forces, double-precision positions and sums) or double; the "
+            "Reference platform is double throughout, the CPU platform's forces are single "
+            "(double is refused there)", choices=registry.PRECISIONS,
         ),
         "threads": Key("int", 1, "CPU platform threads", 1, limits.MAX_THREADS,
                        why=limits.THREADS_WHY),

@@ -90,6 +90,7 @@ RESUMABLE_KEYS = frozenset({
     "output.directory",
     "run.duration",
     "run.platform",
+    "run.precision",
     "run.threads",
     "run.mobility_threads",
     "run.topology_check_interval",

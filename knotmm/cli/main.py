@@ -54,7 +54,9 @@ def version_report() -> str:
 
     knotmm's version and Python's; OpenMM's version; whether the compiled RPY plugin loaded
     (:func:`knotmm.plugin.available`) or why not (:func:`knotmm.plugin.load_error`); the
-    OpenMM platforms that loaded, and the platform libraries that failed to load.
+    OpenMM platforms that loaded, those the plugin has its kernel on
+    (:func:`knotmm.engine.engines.plugin_platforms`) and why a platform's plugin library did
+    not load; the OpenMM platform libraries that failed to load.
     """
     import platform
     import re
@@ -70,9 +72,14 @@ def version_report() -> str:
     else:
         why = (plugin.load_error() or "unknown reason").removeprefix("knotmm.plugin: ")
         lines.append(f"plugin: not loaded ({why}); runs use the Python engine")
-    names = [openmm.Platform.getPlatform(i).getName()
-             for i in range(openmm.Platform.getNumPlatforms())]
+    from knotmm.engine.engines import platform_names, plugin_platforms
+
+    names = platform_names()
     lines.append(f"platforms: {', '.join(names) or 'none'}")
+    if plugin.available():
+        lines.append(f"plugin runs on: {', '.join(plugin_platforms()) or 'none'}")
+        for name, why in plugin.platform_load_errors().items():
+            lines.append(f"plugin not on {name}: {why}")
     failed: dict[str, list[str]] = {}  # why -> the OpenMM plugin libraries that failed so
     for failure in openmm.Platform.getPluginLoadFailures():
         text = " ".join(str(failure).split())

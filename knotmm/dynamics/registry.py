@@ -11,7 +11,7 @@ into what a run uses; :func:`make` and :func:`integrator_from_config` build any 
 
 It is also the one owner of the integrators' defaults (``DEFAULT_*``: steps, tolerances, step
 bounds, Lanczos tolerance), which the run-file schema, the classes' signatures and the
-plugin read, and of the OpenMM platforms (:data:`PLATFORMS`, :data:`PLUGIN_PLATFORMS`,
+plugin read, and of the OpenMM platforms (:data:`PLATFORMS`, :data:`HOST_PLATFORMS`,
 :data:`DEVICE_PLATFORMS`). The help of ``run.integrator``, ``run.timestep`` and
 ``run.tolerance`` is written from the table (:func:`integrator_help`, :func:`timestep_help`,
 :func:`tolerance_help`); ``tests/dynamics/test_one_owner.py`` holds the prose copies (the
@@ -63,7 +63,8 @@ __all__ = [
     "NAMES",
     "PLATFORMS",
     "PLUGIN_ENGINE",
-    "PLUGIN_PLATFORMS",
+    "HOST_PLATFORMS",
+    "PRECISIONS",
     "PYTHON_ENGINE",
     "REGISTRY",
     "IntegratorInfo",
@@ -118,15 +119,20 @@ _BROWNIAN_STEP_WARNING = 0.01
 PYTHON_ENGINE = "python"
 PLUGIN_ENGINE = "plugin"
 BOTH_ENGINES = (PYTHON_ENGINE, PLUGIN_ENGINE)
-#: The OpenMM platforms the compiled plugin has a kernel for (the CPU platform shares the
-#: Reference kernel; ``registerRPYKernelFactories`` in ``plugin/platforms/reference``, which
-#: ``tests/dynamics/test_one_owner.py`` holds to this).
-PLUGIN_PLATFORMS = ("Reference", "CPU")
-#: The device platforms, best first: ``run.platform = "auto"`` may take one for the Python
-#: engine (:func:`knotmm.engine.engines.auto_platform`).
+#: The host platforms: double-precision Reference and the CPU platform (single-precision
+#: forces). Which platforms the compiled plugin runs on is asked of OpenMM
+#: (:func:`knotmm.engine.engines.plugin_platforms`), not listed.
+HOST_PLATFORMS = ("Reference", "CPU")
+#: The device platforms, best first: ``run.platform = "auto"`` may take one
+#: (:func:`knotmm.engine.engines.auto_platform`).
 DEVICE_PLATFORMS = ("CUDA", "HIP", "OpenCL")
 #: Every OpenMM platform a run may name (``run.platform``, besides ``"auto"``).
-PLATFORMS = (*PLUGIN_PLATFORMS, *DEVICE_PLATFORMS)
+PLATFORMS = (*HOST_PLATFORMS, *DEVICE_PLATFORMS)
+#: ``run.precision`` on a device platform (OpenMM's ``Precision`` property): ``auto`` is
+#: mixed (single-precision forces, double-precision sums and positions); ``double``
+#: throughout. Single precision is not offered: a chain far below the origin would sit at
+#: float32 resolution (1e-4 d at 1400 d), the integrators' tolerance.
+PRECISIONS = ("auto", "mixed", "double")
 
 
 @dataclass(frozen=True)

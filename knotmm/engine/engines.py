@@ -32,8 +32,9 @@ the same statistics.
 
 ``run.platform = "auto"`` (:func:`auto_platform`) is decided after the engine, for it: the CPU
 platform (Reference where OpenMM has no CPU platform), unless the engine can use a device
-platform (the Python engine: the plugin has kernels only for :data:`PLUGIN_PLATFORMS`), the chain
-has at least :data:`DEVICE_MIN_BEADS` beads, and a device platform is real
+platform (the Python engine can use any; the plugin those on which it has its kernel,
+:func:`plugin_platforms`, which asks OpenMM), the chain has at least :data:`DEVICE_MIN_BEADS`
+beads, and a device platform is real
 (:func:`device_properties`): CUDA or HIP with a device, or an OpenCL implementation that
 OpenMM supports (NVIDIA, AMD, Apple, Intel: the vendors OpenMM itself does not warn about)
 with a GPU that has double precision, which the run is then pinned to. A CPU implementation
@@ -57,13 +58,13 @@ __all__ = [
     "DEVICE_PLATFORMS",
     "ENGINES",
     "PLUGIN",
-    "PLUGIN_PLATFORMS",
     "PYTHON",
     "auto_platform",
     "device_properties",
     "make_engine",
     "opencl_device",
     "platform_names",
+    "plugin_platforms",
     "resolve_engine",
 ]
 
@@ -73,9 +74,8 @@ PLUGIN = registry.PLUGIN_ENGINE
 PYTHON = registry.PYTHON_ENGINE
 #: The ``run.engine`` values.
 ENGINES = ("auto", PLUGIN, PYTHON)
-#: OpenMM platforms the plugin has a kernel for, and the device platforms ``run.platform =
-#: "auto"`` may take for the Python engine, best first: the registry's (the one owner).
-PLUGIN_PLATFORMS = registry.PLUGIN_PLATFORMS
+#: The device platforms ``run.platform = "auto"`` may take, best first: the registry's (the
+#: one owner). Which platforms the plugin runs on is OpenMM's to say (:func:`plugin_platforms`).
 DEVICE_PLATFORMS = registry.DEVICE_PLATFORMS
 #: Beads from which ``run.platform = "auto"`` considers a device platform.
 DEVICE_MIN_BEADS = 2000
@@ -164,13 +164,13 @@ def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
             log.warning("run.engine = \"plugin\": run.integrator = %r has no plugin "
                         "counterpart; using the Python engine", integrator)
             return PYTHON
-        if platform != "auto" and platform not in PLUGIN_PLATFORMS:
+        if platform != "auto" and platform not in plugin_platforms():
             log.warning("run.engine = \"plugin\": the plugin has no kernel for the %s platform "
-                        "(only %s); using the Python engine", platform,
-                        " and ".join(PLUGIN_PLATFORMS))
+                        "(it has one for %s%s); using the Python engine", platform,
+                        " and ".join(plugin_platforms()), _missing_library(platform))
             return PYTHON
         return PLUGIN
-    if not has_method or (platform != "auto" and platform not in PLUGIN_PLATFORMS):
+    if not has_method or (platform != "auto" and platform not in plugin_platforms()):
         return PYTHON
     return PLUGIN
 
@@ -183,25 +183,54 @@ def platform_names() -> list[str]:
             for i in range(openmm.Platform.getNumPlatforms())]
 
 
+def plugin_platforms() -> tuple[str, ...]:
+    """The loaded OpenMM platforms on which the compiled plugin has its kernel, in OpenMM's order.
+
+    Asked of OpenMM (``Platform.supportsKernels``) after :mod:`knotmm.plugin` has registered
+    its kernel factories: the Reference and CPU platforms from the plugin library itself, a
+    device platform (OpenCL, CUDA) where its own factory library was built and loaded
+    (:func:`knotmm.plugin.platform_load_errors` says why one was not). Empty without the plugin.
+    """
+    import knotmm.plugin as plugin
+
+    if not plugin.available():
+        return ()
+    import openmm
+
+    return tuple(name for name in platform_names()
+                 if openmm.Platform.getPlatformByName(name).supportsKernels([plugin.KERNEL_NAME]))
+
+
+def _missing_library(platform: str) -> str:
+    """Why the plugin has no kernel on ``platform``, as a clause (empty when not known)."""
+    import knotmm.plugin as plugin
+
+    why = plugin.platform_load_errors().get(platform)
+    return f"; its {platform} library did not load: {why}" if why else ""
+
+
 def auto_platform(n_beads: int, engine: str, available: list[str] | None = None,
-                  probe=None) -> tuple[str, dict[str, str]]:
+                  probe=None, kernels: tuple[str, ...] | None = None) -> tuple[str, dict[str, str]]:
     """The platform ``run.platform = "auto"`` takes for a run of ``n_beads`` on ``engine``.
 
-    The CPU platform (Reference where there is none), unless ``engine`` is the Python engine,
-    ``n_beads >= DEVICE_MIN_BEADS`` and one of :data:`DEVICE_PLATFORMS` is available and
-    real by ``probe``: then the first such, with the properties that pin it to its device.
+    The CPU platform (Reference where there is none), unless ``n_beads >= DEVICE_MIN_BEADS``
+    and one of :data:`DEVICE_PLATFORMS` is available, real by ``probe`` and, for the plugin,
+    one it has its kernel on: then the first such, with the properties that pin it to its
+    device.
 
     Parameters
     ----------
     n_beads : int
         The run's beads.
     engine : {"plugin", "python"}
-        The engine chosen (:func:`resolve_engine`); the plugin runs on :data:`PLUGIN_PLATFORMS`.
+        The engine chosen (:func:`resolve_engine`).
     available : list of str, optional
         OpenMM's platform names; default :func:`platform_names`.
     probe : callable, optional
         ``probe(name)``: the properties that pin a real device of platform ``name``, or None
         when it has none that OpenMM supports; default :func:`device_properties`.
+    kernels : tuple of str, optional
+        The platforms the plugin has its kernel on; default :func:`plugin_platforms`.
 
     Returns
     -------
@@ -211,10 +240,13 @@ def auto_platform(n_beads: int, engine: str, available: list[str] | None = None,
     available = platform_names() if available is None else available
     probe = device_properties if probe is None else probe
     cpu = "CPU" if "CPU" in available else "Reference"
-    if engine != PYTHON or n_beads < DEVICE_MIN_BEADS:
+    if n_beads < DEVICE_MIN_BEADS:
         return cpu, {}
+    usable = available
+    if engine != PYTHON:
+        usable = plugin_platforms() if kernels is None else kernels
     for name in DEVICE_PLATFORMS:
-        if name in available:
+        if name in available and name in usable:
             properties = probe(name)
             if properties is not None:
                 return name, dict(properties)

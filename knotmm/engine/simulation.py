@@ -64,13 +64,22 @@ __all__ = ["Simulation", "select_platform"]
 log = logging.getLogger(__name__)
 
 
-def select_platform(name: str, n_beads: int, threads: int = 1, engine: str = PYTHON):
+def select_platform(name: str, n_beads: int, threads: int = 1, engine: str = PYTHON,
+                    precision: str = "auto"):
     """Resolve a platform name to ``(openmm.Platform, properties)``.
 
     ``"auto"`` (:func:`knotmm.engine.engines.auto_platform`) takes the CPU platform with
     ``threads`` threads (1 by default: for the chain sizes of the study the force kernels are
-    too small to gain from threads); only for the Python ``engine`` and ``n_beads >= 2000``
-    a device platform (CUDA, HIP, OpenCL) with a real device that OpenMM supports.
+    too small to gain from threads); only for ``n_beads >= 2000`` a device platform (CUDA,
+    HIP, OpenCL) with a real device that OpenMM supports (and, for the plugin ``engine``, on
+    which the plugin has its kernel). A device platform runs in ``precision``
+    (``run.precision``: ``"auto"`` is mixed, or ``"double"``).
+
+    Raises
+    ------
+    ConfigError
+        A platform this OpenMM does not have, or ``precision = "double"`` on the CPU
+        platform (its forces are single precision).
     """
     available = platform_names()
     pinned = {}
@@ -81,12 +90,17 @@ def select_platform(name: str, n_beads: int, threads: int = 1, engine: str = PYT
             f"run.platform = {name!r}: not available in this OpenMM installation "
             f"(available: {', '.join(available)}); use run.platform = \"auto\""
         )
+    if precision == "double" and name == "CPU":
+        raise ConfigError(
+            'run.precision = "double": the CPU platform computes forces in single precision; '
+            'use run.platform = "Reference" (double, one thread) or a device platform, or '
+            'run.precision = "auto"')
     platform = openmm.Platform.getPlatformByName(name)
     properties = {}
     if name == "CPU":
         properties["Threads"] = str(int(threads))
     elif name in DEVICE_PLATFORMS:
-        properties["Precision"] = "mixed"
+        properties["Precision"] = "mixed" if precision == "auto" else precision
     properties.update(pinned)
     return platform, properties
 
@@ -119,6 +133,8 @@ class Simulation:
     layout : ChainLayout, optional
         The chains of the system (:class:`knotmm.model.layout.ChainLayout`); default: one
         ring of all the beads. The mobility couples every bead of every chain.
+    precision : {"auto", "mixed", "double"}
+        A device platform's precision (``run.precision``; ``"auto"`` is mixed).
 
     Attributes
     ----------
@@ -155,6 +171,7 @@ class Simulation:
         mobility_threads: int = 1,
         engine: str = PYTHON,
         layout: ChainLayout | None = None,
+        precision: str = "auto",
     ):
         pos = np.array(positions, dtype=np.float64)
         self.mobility_threads = int(mobility_threads)
@@ -164,7 +181,7 @@ class Simulation:
         self._n_particles = self.system.getNumParticles()  # the beads, then any sites
         self.topology = bead_topology(self.layout)
         self.integrator = RK23(0.01) if integrator is None else integrator
-        plat, props = select_platform(platform, pos.shape[0], threads, engine)
+        plat, props = select_platform(platform, pos.shape[0], threads, engine, precision)
         self._engine = make_engine(engine, self.integrator, threads=self.mobility_threads,
                                    n_beads=pos.shape[0])
         self.openmm_integrator = self._engine.openmm_integrator
@@ -274,6 +291,7 @@ class Simulation:
             mobility_threads=cfg["run.mobility_threads"],
             engine=engine,
             layout=layout,
+            precision=cfg["run.precision"],
         )
 
     # -- checkpoints (OpenMM's names) -------------------------------------------------------

@@ -87,10 +87,12 @@ __all__ = [
     "available",
     "load_error",
     "from_python_integrator",
+    "KERNEL_NAME",
     "METHODS",
     "REBUILD_COMMAND",
     "StepFault",
     "noise_settings",
+    "platform_load_errors",
     "rebuild_needed",
     "use_lapack_cholesky",
 ]
@@ -102,6 +104,23 @@ log = logging.getLogger(__name__)
 #: registry (:mod:`knotmm.dynamics.registry`, ``IntegratorInfo.engines``) says which methods
 #: have a plugin counterpart; ``tests/plugin/test_plugin_contract.py`` holds the two together.
 METHODS: dict[str, tuple[int, bool, bool]] = {}
+
+#: The name under which the plugin's platforms register the integrator's kernel (C++
+#: ``IntegrateRPYStepKernel::Name()``): ask a platform ``supportsKernels([KERNEL_NAME])``.
+KERNEL_NAME = "IntegrateRPYStep"
+
+#: Platform name -> why the plugin's library for that platform did not load (filled at import).
+_platform_load_errors: dict[str, str] = {}
+
+
+def platform_load_errors() -> dict[str, str]:
+    """Why a device platform's plugin library (OpenCL, CUDA) was not loaded, by platform.
+
+    Only platforms that OpenMM has and for which a library was built appear; a platform whose
+    library loaded is absent. A copy: changing it changes nothing.
+    """
+    return dict(_platform_load_errors)
+
 
 #: The command that rebuilds the plugin against the OpenMM that is installed.
 REBUILD_COMMAND = ("pip install -e . --no-build-isolation in the knotmm checkout "

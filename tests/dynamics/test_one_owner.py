@@ -1,7 +1,7 @@
 """One owner each: the method table, the integrators' defaults, the platforms (issue 31).
 
 The owners: :mod:`knotmm.dynamics.registry` (``REGISTRY``, its ``DEFAULT_*`` constants,
-``PLATFORMS``/``PLUGIN_PLATFORMS``/``DEVICE_PLATFORMS``) and the compiled plugin's C++ method
+``PLATFORMS``/``HOST_PLATFORMS``/``DEVICE_PLATFORMS``) and the compiled plugin's C++ method
 table (``knotmm.plugin.METHODS``; ``tests/plugin/test_plugin_contract.py`` holds the two tables
 together). Generated text (``run.integrator``'s help and choices, ``run.platform``'s) is
 compared with what the registry writes; every prose copy (the plugin's docstring, its C++
@@ -18,7 +18,6 @@ import math
 import re
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from knotmm.config import SCHEMA
@@ -31,10 +30,10 @@ from knotmm.dynamics.registry import (
     DEFAULT_TIMESTEP,
     DEFAULT_TOLERANCE,
     DEVICE_PLATFORMS,
+    HOST_PLATFORMS,
     NAMES,
     PLATFORMS,
     PLUGIN_ENGINE,
-    PLUGIN_PLATFORMS,
     REGISTRY,
 )
 
@@ -243,15 +242,15 @@ def test_run_platform_choices_and_help_are_the_registrys():
     key = SCHEMA["run"]["platform"]
     assert key.choices == ("auto", *PLATFORMS)
     _same(re.findall(r"\w+", key.doc.split(":", 1)[1]), key.choices, "run.platform's help")
-    assert set(PLUGIN_PLATFORMS) | set(DEVICE_PLATFORMS) == set(PLATFORMS)
-    assert " and ".join(PLUGIN_PLATFORMS) + " platforms" in SCHEMA["run"]["engine"].doc
+    assert set(HOST_PLATFORMS) | set(DEVICE_PLATFORMS) == set(PLATFORMS)
+    assert SCHEMA["run"]["precision"].choices == registry.PRECISIONS
 
 
 def test_the_engine_module_takes_the_registrys_platforms():
     from knotmm.engine import engines
 
-    assert engines.PLUGIN_PLATFORMS is PLUGIN_PLATFORMS
     assert engines.DEVICE_PLATFORMS is DEVICE_PLATFORMS
+    assert not hasattr(engines, "PLUGIN_PLATFORMS")  # asked of OpenMM: plugin_platforms()
 
 
 def test_the_readmes_list_the_platforms():
@@ -259,29 +258,7 @@ def test_the_readmes_list_the_platforms():
     line = _between(readme, '\nplatform = "auto"', "\n")
     choices = line.split("#", 1)[1].split("(")[0]
     _same([c.strip() for c in choices.split("|")], ("auto", *PLATFORMS), "README, platform =")
-    runs_on = re.search(r"the plugin runs on ([\w/]+)", readme).group(1)
-    _same(runs_on.split("/"), PLUGIN_PLATFORMS, "README, the plugin runs on")
-    none = re.search(r"no ([\w/]+) kernel", _text("plugin/README.md")).group(1)
-    _same(none.split("/"), DEVICE_PLATFORMS, "plugin/README.md, no ... kernel")
+    line = _between(readme, '\nprecision = "auto"', "\n")
+    choices = line.split("#", 1)[1].split("(")[0]
+    _same([c.strip() for c in choices.split("|")], registry.PRECISIONS, "README, precision =")
 
-
-def test_the_plugin_has_a_kernel_on_exactly_the_plugin_platforms():
-    """Every platform this OpenMM has: a Context with the plugin builds iff it is listed."""
-    kp = _plugin()
-    import openmm
-
-    from knotmm.engine.engines import platform_names
-
-    for name in platform_names():
-        system = openmm.System()
-        for _ in range(2):
-            system.addParticle(1.0)
-        try:
-            context = openmm.Context(system, kp.RPYIntegrator(0.01),
-                                     openmm.Platform.getPlatformByName(name))
-        except openmm.OpenMMException as exc:
-            assert name not in PLUGIN_PLATFORMS, f"{name}: {exc}"
-        else:
-            context.setPositions(np.array([[0.0, 0, 0], [1.0, 0, 0]]))
-            assert name in PLUGIN_PLATFORMS, f"{name}: the plugin has a kernel there"
-            del context

@@ -30,8 +30,47 @@ def _no_probe(name):
 
 
 @pytest.mark.parametrize("beads", [30, 5000])
-def test_the_plugin_engine_gets_the_cpu_whatever_devices_there_are(beads):
-    assert auto_platform(beads, "plugin", EVERYTHING, _no_probe) == ("CPU", {})
+def test_the_plugin_engine_gets_the_cpu_where_it_has_no_device_kernel(beads):
+    host = ("Reference", "CPU")
+    assert auto_platform(beads, "plugin", EVERYTHING, _no_probe, kernels=host) == ("CPU", {})
+
+
+def test_the_plugin_engine_takes_a_real_device_it_has_a_kernel_on():
+    kernels = ("Reference", "CPU", "OpenCL")
+    # CUDA is real but the plugin has no kernel there; OpenCL is real and has one
+    assert auto_platform(5000, "plugin", EVERYTHING, _real("CUDA", "OpenCL"),
+                         kernels=kernels) == ("OpenCL", {})
+    # the kernel alone does not make a device real (pocl: the probe finds none)
+    assert auto_platform(5000, "plugin", EVERYTHING, _real(), kernels=kernels) == ("CPU", {})
+    # small chains stay on the CPU without asking the probe
+    assert auto_platform(engines.DEVICE_MIN_BEADS - 1, "plugin", EVERYTHING, _no_probe,
+                         kernels=kernels) == ("CPU", {})
+
+
+def test_the_plugin_platforms_are_asked_of_openmm():
+    """Each platform of :func:`plugin_platforms` builds a Context with the plugin; every other
+    loaded platform refuses one with OpenMM's missing-kernel error."""
+    if not knotmm.plugin.available():
+        pytest.skip(knotmm.plugin.load_error())
+    import numpy as np
+    import openmm
+
+    have = engines.plugin_platforms()
+    assert {"Reference", "CPU"} <= set(have)
+    for name in engines.platform_names():
+        system = openmm.System()
+        for _ in range(2):
+            system.addParticle(1.0)
+        try:
+            context = openmm.Context(system, knotmm.plugin.RPYIntegrator(0.01),
+                                     openmm.Platform.getPlatformByName(name))
+        except openmm.OpenMMException as exc:
+            assert name not in have, f"{name}: {exc}"
+            assert "kernel" in str(exc).lower()
+        else:
+            context.setPositions(np.array([[0.0, 0, 0], [1.0, 0, 0]]))
+            assert name in have, f"{name}: a Context with the plugin builds there"
+            del context
 
 
 def test_an_opencl_that_openmm_calls_unsupported_is_never_taken():
@@ -104,9 +143,10 @@ def test_a_python_engine_run_on_a_machine_with_pocl_runs_on_the_cpu(monkeypatch)
 
 
 @pytest.mark.skipif(not knotmm.plugin.available(), reason=str(knotmm.plugin.load_error()))
-def test_auto_keeps_the_plugin_engine_and_its_cpu_even_beside_a_real_gpu(monkeypatch):
+def test_auto_keeps_the_plugin_engine_and_its_cpu_beside_a_gpu_it_has_no_kernel_on(monkeypatch):
     """Before: a device platform was chosen first and took the run to the Python engine."""
     _fake_machine(monkeypatch, ["Reference", "CPU", "CUDA"], _real("CUDA"))
+    monkeypatch.setattr(engines, "plugin_platforms", lambda: ("Reference", "CPU"))
     cfg = RunConfig.from_dict({"knot": {"beads": 30}, "run": {"platform": "auto"}})
     sim = Simulation.from_config(cfg)
     assert (sim.platform_name, sim.engine) == ("CPU", "plugin")
