@@ -28,6 +28,11 @@ interleaved, medians, ratios as medians of the per-repetition ratios;
     Whole ``knotmm run`` commands (plugin engine, gravity as given), one per integrator and
     seed, interleaved by seed: runs finished, median wall time, steps, rejections, and the
     wall-time ratio of the first integrator to each other one over the seeds both finished.
+``platforms``
+    Seconds per accepted plugin step on each platform the plugin has a kernel on (Reference,
+    CPU with one thread, OpenCL, CUDA), ``--methods`` rk23 and ito_heun_adaptive (kT = 1,
+    ``--noise`` Lanczos), N beads as rings of 100 (one ring below 200), device platforms in
+    ``--precision``; the ratio of each platform to Reference.
 ``stiff``
     ``knotmm run --duration 40`` with ``model.bending_stiffness = 5000`` against ``= 5`` (N =
     90, ``run.integrator = "auto"``, plus each ``--stiff-reference`` integrator). A stiff run
@@ -43,6 +48,7 @@ Run on demand (not part of the tests)::
     python benchmarks/bench_steps.py adaptive --peclet 1 --beads 90 --duration 30 \\
         --seeds 1 2 3 --cases ito_heun_adaptive ito_heun:0.002 leimkuhler_matthews:0.01
     python benchmarks/bench_steps.py stiff --repeats 3
+    python benchmarks/bench_steps.py platforms --beads 90 3000 --steps 3
     python benchmarks/bench_steps.py brownian --quick     # any sub-command: a smoke run
 """
 
@@ -413,6 +419,78 @@ def cmd_stiff(args):
     return summary, samples, {"variants": variants}
 
 
+# -- platforms ------------------------------------------------------------------------------
+def _rings(n: int, per_ring: int = 100):
+    """``n`` beads as T(2,3) rings of ``per_ring`` beads side by side (one ring below 2 rings'
+    worth), with their layout."""
+    from knotmm.model.layout import ChainLayout
+
+    if n < 2 * per_ring:
+        return harness.template(n), ChainLayout.ring(n)
+    k = n // per_ring
+    side = int(np.ceil(np.sqrt(k)))
+    ring = harness.template(per_ring)
+    x = np.vstack([ring + [8.0 * (i % side), 8.0 * (i // side), 0.0] for i in range(k)])
+    return x, ChainLayout((per_ring,) * k, (True,) * k)
+
+
+def cmd_platforms(args):
+    """Seconds per accepted plugin step on each platform the plugin has a kernel on."""
+    import openmm
+
+    from knotmm.engine.engines import plugin_platforms
+    from knotmm.model.system import chain_system
+    from knotmm.plugin import RPYIntegrator
+
+    names = [n for n in (args.platforms or plugin_platforms()) if n in plugin_platforms()]
+    properties = {"CPU": {"Threads": "1"}, "Reference": {}}
+    contexts = {}
+
+    def make(name, n, method):
+        x, layout = _rings(n)
+        kwargs = {"threads": 1}
+        if method != "rk23":
+            kwargs.update(kT=1.0, seed=1, noise=args.noise, error_tolerance=args.tolerance)
+        integ = RPYIntegrator(0.001 if method != "rk23" else 0.01, method, **kwargs)
+        props = properties.get(name, {"Precision": args.precision})
+        ctx = openmm.Context(chain_system(x, layout=layout), integ,
+                             openmm.Platform.getPlatformByName(name), props)
+        ctx.setPositions(x)
+        integ.step(2)  # kernels compiled, caches warm
+        return integ, ctx
+
+    def timed(key, steps):
+        integ, _ = contexts[key]
+        before = integ.getNumAcceptedSteps()
+        t0 = time.perf_counter()
+        integ.step(steps)
+        return (time.perf_counter() - t0) / (integ.getNumAcceptedSteps() - before)
+
+    cases = {}
+    for n in args.beads:
+        for method in args.methods:
+            for name in names:
+                key = f"{n}/{method}/{name}"
+                contexts[key] = make(name, n, method)
+                cases[key] = partial(timed, key, args.steps)
+    samples = harness.interleave(cases, args.repeats)
+    summary = harness.summarize(samples, unit="s per step")
+    ratios = {}
+    print(f"\nseconds per accepted step ({args.precision} on device platforms)")
+    for n in args.beads:
+        for method in args.methods:
+            base = f"{n}/{method}/Reference"
+            line = [f"{n:6d} {method:18s}"]
+            for name in names:
+                key = f"{n}/{method}/{name}"
+                line.append(f"{name} {summary[key]['median'] * 1e3:9.3f} ms")
+                if name != "Reference" and base in samples:
+                    ratios[key] = harness.ratio(samples, key, base)
+                    line.append(f"(x{ratios[key]:.2f} of Reference)")
+            print("  ".join(line))
+    return summary, samples, {"over_reference": ratios, "platforms": names}
+
+
 # -- command line ---------------------------------------------------------------------------
 def main(argv=None):
     import argparse
@@ -464,6 +542,19 @@ def main(argv=None):
     s.add_argument("--variant", action="append", default=[], metavar="NAME:K=V[;K=V]")
     s.set_defaults(func=cmd_stiff)
 
+    s = sub.add_parser("platforms", help="a plugin step on each platform it has a kernel on")
+    harness.add_options(s, repeats=3)
+    s.add_argument("--beads", type=int, nargs="+", default=[90, 3000])
+    s.add_argument("--methods", nargs="+", default=["rk23", "ito_heun_adaptive"])
+    s.add_argument("--platforms", nargs="*", default=None,
+                   help="default: every platform the plugin has a kernel on")
+    s.add_argument("--precision", default="double", choices=["mixed", "double"])
+    s.add_argument("--noise", default="lanczos", choices=["cholesky", "lanczos"])
+    s.add_argument("--tolerance", type=float, default=1e-4,
+                   help="ito_heun_adaptive's error tolerance, in d")
+    s.add_argument("--steps", type=int, default=5, help="steps per timed sample")
+    s.set_defaults(func=cmd_platforms)
+
     args = p.parse_args(argv)
     if args.quick:
         args.repeats = 1
@@ -471,7 +562,8 @@ def main(argv=None):
                  "brownian": dict(steps=20, burn=0.01, budget=0.02,
                                   schemes=["leimkuhler_matthews"]),
                  "adaptive": dict(beads=40, duration=0.5, seeds=[1]),
-                 "stiff": dict(duration=0.5, stiff_timeout=20.0, stiff_reference=[])}
+                 "stiff": dict(duration=0.5, stiff_timeout=20.0, stiff_reference=[]),
+                 "platforms": dict(beads=[40], steps=2)}
         for key, value in quick[args.command].items():
             setattr(args, key, value)
     info = harness.header(args)

@@ -199,3 +199,39 @@ def test_brownian_default_kill_and_resume_equals_uninterrupted(tmp_path):
     assert traj.n_frames == ref_traj.n_frames == 25
     np.testing.assert_array_equal(traj.xyz, ref_traj.xyz)
     assert rows == ref_rows
+
+
+def _device_platforms() -> list:
+    from knotmm.engine.engines import DEVICE_PLATFORMS, plugin_platforms
+
+    names = [n for n in plugin_platforms() if n in DEVICE_PLATFORMS]
+    return [pytest.param(n, id=n) for n in names] or [pytest.param(
+        None, id="none", marks=pytest.mark.skip(reason="no device platform has the plugin's "
+                                                      "kernel here (knotmm --version)"))]
+
+
+@pytest.mark.parametrize("platform", _device_platforms())
+def test_kill_and_resume_on_a_device_platform_equals_uninterrupted(tmp_path, platform):
+    """The plugin on OpenCL/CUDA: a run killed with SIGKILL and resumed writes the frames and
+    rows of the uninterrupted run on that platform, bit for bit (the checkpoint holds the
+    device backend's whole state)."""
+    settings = {**SETTINGS, "run": {**SETTINGS["run"], "duration": 6.0, "platform": platform,
+                                    "engine": "plugin"}}
+    reference = tmp_path / "reference"
+    run(RunConfig.from_dict(settings), directory=reference, progress=False)
+    directory = tmp_path / "run"
+    run_file = _write_run_file(tmp_path / "run.toml", directory)
+    run_file.write_text(run_file.read_text().replace(
+        "duration = 12.0\n", f'duration = 6.0\nplatform = "{platform}"\nengine = "plugin"\n'))
+    proc = _start_run(run_file, directory, 3, subprocess.DEVNULL)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    if proc.returncode == 0:
+        pytest.skip("the run finished before it could be killed")
+    assert main(["run", "--resume", str(directory), "--no-progress"]) == 0
+    assert f'platform = "{platform}"' in (directory / "run.toml").read_text()
+    traj, rows = _load(directory)
+    ref_traj, ref_rows = _load(reference)
+    assert traj.n_frames == ref_traj.n_frames == 13
+    np.testing.assert_array_equal(traj.xyz, ref_traj.xyz)
+    assert rows == ref_rows
