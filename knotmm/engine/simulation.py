@@ -203,6 +203,11 @@ class Simulation:
         self.check_state(self.positions, initial=True)
         self.sync_context()
 
+    def __repr__(self) -> str:
+        return (f"Simulation({self.layout.describe()}, t = {self.time:g} tau_d, "
+                f"step {self.currentStep}, "
+                f"{self.integrator.name} on the {self.engine} engine, {self.platform_name})")
+
     # -- the engine's state -------------------------------------------------------------
     @property
     def engine(self) -> str:

@@ -111,6 +111,11 @@ class SweepResult:
     skipped: int
     wall_time: float
 
+    def __repr__(self) -> str:
+        return (f"SweepResult({len(self.rows)} points, {len(self.failed)} not finished, "
+                f"ran={self.ran}, resumed={self.resumed}, analysed={self.analysed}, "
+                f"skipped={self.skipped}, directory={str(self.directory)!r})")
+
     @property
     def failed(self) -> list[dict[str, Any]]:
         """Rows whose status is not ``finished``."""

@@ -157,6 +157,12 @@ class Sweep:
     notes: list[str] = field(default_factory=list)
     overrides: dict[str, Any] = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        swept = ", ".join(f"{k} x{len(v)}" for k, v in self.values.items()) or "no keys"
+        seeds = f", seeds={self.options.seeds}" if self.options.seeds else ""
+        return (f"Sweep({len(self.points)} points: {swept}{seeds}, mode={self.options.mode!r}, "
+                f"directory={str(self.directory)!r})")
+
     @property
     def keys(self) -> tuple[str, ...]:
         """The swept dotted keys (``run.seed`` not included for ``seeds = K``)."""

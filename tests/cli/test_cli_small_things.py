@@ -126,6 +126,28 @@ def _replica_set_line(root) -> str:
             f"one of them, {root / 'replica_K'} with K = 0 ... 2")
 
 
+def test_simulation_and_sweep_reprs_say_what_they_are_in_one_short_line(tmp_path):
+    from knotmm import Simulation
+    from knotmm.shapes import torus_knot
+    from knotmm.sweep.runner import SweepResult
+    from knotmm.sweep.spec import Sweep
+
+    sim = Simulation(torus_knot(2, 3, 40), platform="Reference")
+    sim.run(0.1)
+    text = repr(sim)
+    assert text.startswith("Simulation(40 beads, one ring, t = 0.1 tau_d, step ")
+    assert "rk23 on the python engine, Reference" in text
+    sweep = Sweep.from_dict({"knot": {"beads": 40}, "run": {"duration": 1.0},
+                             "sweep": {"seeds": 2, "knot.beads": [40, 50, 60]}},
+                            directory=tmp_path / "s")
+    text = repr(sweep)
+    assert text.startswith("Sweep(6 points: knot.beads x3, seeds=2, mode='grid'")
+    assert "\n" not in text and len(text) < 200  # was about 10 kB
+    result = SweepResult(tmp_path, [{"status": "finished"}, {"status": "fault"}],
+                         tmp_path / "summary.csv", [], 1, 0, 1, 0, 3.0)
+    assert repr(result).startswith("SweepResult(2 points, 1 not finished, ran=1")
+
+
 def test_load_run_of_a_replica_set_names_its_replicas(replica_set):
     with pytest.raises(TrajectoryFileError) as info:
         knotmm.load_run(replica_set)
