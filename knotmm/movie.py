@@ -259,6 +259,7 @@ def render_frames(
     dpi: float = 80,
     title: str = "",
     layout=None,
+    start_height: float | None = None,
 ):
     """Yield the movie's RGB frames for a trajectory (all frames given are drawn).
 
@@ -277,6 +278,9 @@ def render_frames(
     layout : knotmm.model.layout.ChainLayout, optional
         The chains: only their bonds are drawn (none between chains, none across an open
         chain's ends), a colour per chain when there are several. Default: one ring.
+    start_height : float, optional
+        Height (z, in d) of the centre of mass from which "fallen" is counted: the run's
+        start, when the frames given begin later (``--from``). Default: the first frame's.
 
     Yields
     ------
@@ -286,7 +290,7 @@ def render_frames(
     com = positions.mean(axis=1)
     rel = positions - com[:, None, :]
     scene = _Scene(positions, com, tracer, trail, dpi, title, layout)
-    z0 = com[0, 2]
+    z0 = com[0, 2] if start_height is None else float(start_height)
     for k in range(len(positions)):
         history = rel[max(0, k - trail) : k + 1, tracer]
         label = (
@@ -394,8 +398,9 @@ def make_movie(
         out = Path(base) / f"movie.{fmt}"
     check_output_file(out)  # read-only, a directory in the way: one line before rendering
 
+    # "fallen" counts from the run's first frame, also for a movie that starts later
     frames = render_frames(positions[idx], times[idx], tracer, int(trail), dpi, _title(data),
-                           run_layout(data))
+                           run_layout(data), start_height=positions[0].mean(axis=0)[2])
     write = _write_mp4 if fmt == "mp4" else _write_gif
     kept = f"{str(out)!r} was not written (a file of that name before is left as it was)"
     # the movie goes to a temporary name beside `out` and is renamed when complete, so a

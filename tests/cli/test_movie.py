@@ -46,6 +46,30 @@ def test_time_window_and_tracer(tiny_run, tmp_path):
     assert result.frames == 5 and result.stride == 1
 
 
+def test_fallen_counts_from_the_runs_start_in_a_movie_started_later(tiny_run, tmp_path,
+                                                                     monkeypatch):
+    """``--from 2``: the label's "fallen" is the centre of mass's drop since t = 0 (read here
+    from the DCD with mdtraj), not since the movie's first frame."""
+    import mdtraj
+
+    import knotmm.movie
+
+    labels = []
+    draw = knotmm.movie._Scene.draw
+
+    def spy(self, rel, history, label):
+        labels.append(label)
+        return draw(self, rel, history, label)
+
+    monkeypatch.setattr(knotmm.movie._Scene, "draw", spy)
+    make_movie(tiny_run, out=tmp_path / "late.gif", t_from=2.0, dpi=30, trail=0)
+    traj = mdtraj.load(str(tiny_run / "trajectory.dcd"), top=str(tiny_run / "topology.pdb"))
+    z = traj.xyz.mean(axis=1)[:, 2]  # mdtraj's nm: the file's 10 Angstrom per d read as 1
+    want = [f"fallen {z[0] - z[k]:.1f} d" for k in range(4, 9)]  # frames at t = 2 ... 4
+    assert [lab.split("    ")[1] for lab in labels] == want
+    assert z[0] - z[4] > 1.0  # it had fallen before the movie starts
+
+
 @pytest.mark.skipif(not HAVE_FFMPEG, reason="imageio-ffmpeg not installed")
 def test_mp4_has_the_expected_frames(tiny_run, tmp_path, capsys):
     import imageio_ffmpeg
