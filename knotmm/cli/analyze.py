@@ -57,7 +57,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "--frame-interval",
         type=float,
         metavar="T",
-        help="time between frames in tau_d (needed without run.toml)",
+        help="time between frames in tau_d (default: run.toml's, else the DCD header's)",
     )
     parser.add_argument(
         "--topology", metavar="PDB", help="topology PDB for a DCD (default: the PDB beside it)"

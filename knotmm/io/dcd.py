@@ -35,6 +35,7 @@ from knotmm.errors import TrajectoryFileError
 from knotmm.units import d_to_angstrom
 
 __all__ = [
+    "AKMA_PS",
     "DCDLayout",
     "DCDWriter",
     "c_path",
@@ -47,6 +48,9 @@ __all__ = [
 
 #: Bytes of one unit-cell record (4-byte marker, six float64, 4-byte marker).
 _CELL_BYTES = 56
+#: The AKMA unit of time of CHARMM's DCD header, in ps (OpenMM's ``DCDFile`` divides its step
+#: by it).
+AKMA_PS = 0.04888821
 
 
 @dataclass(frozen=True)
@@ -67,6 +71,11 @@ class DCDLayout:
     partial_bytes : int
         Bytes after the last whole frame (a frame cut short).
     byteorder : {"<", ">"}
+    frame_interval : float or None
+        Time between frames from the header, in ps (= tau_d): the steps between frames
+        (``NSAVC``) times the step (``DELTA``, in AKMA time units of :data:`AKMA_PS` ps), as
+        OpenMM's ``DCDFile`` writes them and MDAnalysis reads them, to the 7 digits of the
+        float32 step; None when either is not positive.
     """
 
     header_bytes: int
@@ -76,6 +85,7 @@ class DCDLayout:
     complete_frames: int
     partial_bytes: int
     byteorder: str = "<"
+    frame_interval: float | None = None
 
     @property
     def truncated(self) -> bool:
@@ -111,6 +121,8 @@ def dcd_layout(path) -> DCDLayout:
             # after 84, 'CORD': nine ints (claimed at 8), the time step (44), then at 48
             # the unit-cell flag
             has_cell = struct.unpack(order + "i", fields[40:44])[0]
+            steps_between = struct.unpack(order + "i", fields[8:12])[0]  # NSAVC, at 16
+            delta = struct.unpack(order + "f", fields[36:40])[0]  # DELTA, float32 at 44
             title = fh.read(4)
             if len(title) < 4:
                 raise TrajectoryFileError(f"{str(path)!r} is cut inside its DCD header")
@@ -128,7 +140,10 @@ def dcd_layout(path) -> DCDLayout:
         raise TrajectoryFileError(f"{str(path)!r} is cut inside its DCD header")
     frame = 3 * (8 + 4 * n_atoms) + (_CELL_BYTES if has_cell else 0)
     complete, partial = divmod(size - header, frame)
-    return DCDLayout(header, frame, n_atoms, max(0, claimed), complete, partial, order)
+    # DELTA is a float32: the interval to its 7 significant digits (0.5, not 0.50000002)
+    interval = float(f"{steps_between * float(delta) * AKMA_PS:.7g}")
+    return DCDLayout(header, frame, n_atoms, max(0, claimed), complete, partial, order,
+                     interval if steps_between > 0 and interval > 0 else None)
 
 
 def truncate_dcd(path, n_frames: int) -> None:

@@ -29,7 +29,7 @@ import numpy as np
 
 from knotmm.config import read_toml
 from knotmm.errors import ConfigError, TrajectoryFileError
-from knotmm.io.dcd import read_dcd
+from knotmm.io.dcd import dcd_layout, read_dcd
 from knotmm.io.replica_set import REPLICA_SET_FILE, is_replica_set, read_replica_set, replica_index
 from knotmm.io.rundir import RUN_FILE, TOPOLOGY_FILE, TRAJECTORY_FILE
 from knotmm.model.layout import ChainLayout
@@ -304,6 +304,15 @@ def _ring_notes(bonds: np.ndarray, n: int, top: Path) -> list[str]:
     return []
 
 
+def _header_interval(traj_path: Path) -> float | None:
+    """The frame interval a DCD's header states (:attr:`DCDLayout.frame_interval`), or None
+    (no step in the header, or a file that is not a DCD: read_dcd says what is wrong)."""
+    try:
+        return dcd_layout(traj_path).frame_interval
+    except TrajectoryFileError:
+        return None
+
+
 def load_run(path, frame_interval: float | None = None, topology=None) -> RunData:
     """Load a run directory or a DCD/PDB pair, in model units.
 
@@ -314,8 +323,10 @@ def load_run(path, frame_interval: float | None = None, topology=None) -> RunDat
         For a DCD file the topology is ``--topology``, else a PDB with the same stem, else
         ``topology.pdb`` beside it; a ``run.toml`` beside it is read if present.
     frame_interval : float, optional
-        Time between frames in tau_d. Required when there is no ``run.toml``; when both are
-        given this value wins (a warning is logged if they differ).
+        Time between frames in tau_d. Without it: ``run.toml``'s ``output.frame_interval``,
+        else the DCD header's (its steps between frames times its step, read as ps = tau_d;
+        a note says so); when both this and ``run.toml`` are given this value wins (a
+        warning is logged if they differ).
     topology : str or Path, optional
         A PDB topology to use instead of the one found beside the trajectory.
 
@@ -330,7 +341,8 @@ def load_run(path, frame_interval: float | None = None, topology=None) -> RunDat
         A file is missing, unreadable, truncated to nothing, or the DCD and PDB disagree on
         the number of beads (or disagree with ``knot.beads`` in ``run.toml``).
     ConfigError
-        ``run.toml`` is not valid TOML, or no frame interval is known.
+        ``run.toml`` is not valid TOML, or no frame interval is known (none given, no
+        ``run.toml``, none in the DCD header).
     """
     import mdtraj
 
@@ -346,11 +358,15 @@ def load_run(path, frame_interval: float | None = None, topology=None) -> RunDat
             notes.append(f"frame interval {dt:g} tau_d given; {RUN_FILE} says {from_file}")
     elif from_file is not None:
         dt = _check_interval(from_file, f"{run_file}: output.frame_interval")
+    elif (header := _header_interval(traj_path)) is not None:
+        dt = header / PS_PER_TAU
+        notes.append(f"frame interval {dt:g} tau_d from the header of {traj_path.name} "
+                     "(1 ps = 1 tau_d; give --frame-interval T if the file means otherwise)")
     else:
         where = (
             f"{run_file} has no output.frame_interval"
             if run_file
-            else (f"no {RUN_FILE} beside {traj_path}")
+            else (f"no {RUN_FILE} beside {traj_path} and its header has no time step")
         )
         raise ConfigError(
             f"{where}: give the time between frames with --frame-interval T (in tau_d)"

@@ -44,12 +44,23 @@ def test_run_directory_in_model_units(run, positions):
     np.testing.assert_allclose(raw[3], 10 * positions[3], atol=1e-3)
 
 
-def test_bare_dcd_needs_frame_interval(run, tmp_path):
+def _zero_header_step(path):
+    """Set the DCD header's DELTA (float32 at byte 44) to 0: a file with no time step."""
+    with open(path, "r+b") as fh:
+        fh.seek(44)
+        fh.write(b"\0\0\0\0")
+
+
+def test_bare_dcd_takes_its_headers_interval_else_needs_frame_interval(run, tmp_path):
     bare = tmp_path / "bare"
     bare.mkdir()
     shutil.copy(run / "trajectory.dcd", bare / "knot.dcd")
     shutil.copy(run / "topology.pdb", bare / "chain.pdb")
-    with pytest.raises(ConfigError, match="--frame-interval"):
+    data = load_run(bare / "knot.dcd")  # no run.toml: the header's NSAVC x DELTA
+    assert data.frame_interval == DT and data.times[-1] == 40 * DT
+    assert any("from the header of knot.dcd" in n for n in data.notes)
+    _zero_header_step(bare / "knot.dcd")
+    with pytest.raises(ConfigError, match="header has no time step.*--frame-interval"):
         load_run(bare / "knot.dcd")
     data = load_run(bare / "knot.dcd", frame_interval=2.0)  # the only PDB beside it
     assert data.frame_interval == 2.0 and data.times[-1] == 80.0
@@ -59,6 +70,24 @@ def test_bare_dcd_needs_frame_interval(run, tmp_path):
     with pytest.raises(TrajectoryFileError, match="--topology"):
         load_run(bare / "knot.dcd", frame_interval=2.0)
     assert load_run(bare / "knot.dcd", frame_interval=2.0, topology=other).n_beads == 30
+
+
+def test_an_openmm_dcd_reporters_file_states_its_interval(run, tmp_path):
+    """OpenMM's DCDFile with a 0.002 ps step and a frame every 250 steps: 0.5 ps between
+    frames, as MDAnalysis reads the same header (dt = NSAVC x DELTA x 0.04888821 ps)."""
+    import openmm.app as app
+
+    from knotmm.model.topology import bead_topology
+
+    x = load_run(run).positions
+    with open(tmp_path / "reporter.dcd", "wb") as fh:
+        dcd = app.DCDFile(fh, bead_topology(30), 0.002, interval=250)
+        for frame in x[:5]:
+            dcd.writeModel(frame)
+    shutil.copy(run / "topology.pdb", tmp_path / "reporter.pdb")
+    data = load_run(tmp_path / "reporter.dcd")
+    assert data.frame_interval == 0.5 and data.n_frames == 5
+    np.testing.assert_allclose(data.positions, x[:5], atol=1e-4)
 
 
 def test_frame_interval_argument_wins(run):
