@@ -12,6 +12,7 @@ Notebooks (``docs/notebooks/``) are executed by myst-nb on every build.
 from __future__ import annotations
 
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -56,6 +57,20 @@ napoleon_use_rtype = False
 # Types as explicit roles: Sphinx would otherwise resolve every word of a type such as
 # "ndarray, shape (n_frames, n_beads, 3)" fuzzily, and "n_frames" names several properties
 napoleon_preprocess_types = True
+
+
+def _short_type_names(app, what, name, obj, options, signature, return_annotation):
+    """A dataclass with a ``default_factory`` field has the signature ``(..., x=<factory>)``,
+    which is not Python: Sphinx then prints the whole signature as text, and its type names'
+    ``~`` ("show the short name") would appear literally (``~knotmm.config.RunConfig``).
+    Those signatures get the short names themselves; parseable ones are left to Sphinx."""
+    if signature and "<factory>" in signature:
+        signature = re.sub(r"~(?:\w+\.)*(\w+)", r"\1", signature)
+    return signature, return_annotation
+
+
+def setup(app):
+    app.connect("autodoc-process-signature", _short_type_names)
 
 
 # -- MyST and myst-nb -----------------------------------------------------------------------

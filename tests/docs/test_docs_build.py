@@ -38,5 +38,10 @@ def test_sphinx_build_passes_with_warnings_as_errors(tmp_path):
     assert "RunData(" in notebook and "60 beads, 1 closed chain" in notebook
     assert "3dmolviewer" in notebook  # the py3Dmol view
     assert "V [d/tau_d]" in notebook  # the analysis summary
+    # no signature shows a type as Sphinx's "~module.Name" text (dataclasses with a factory
+    # default: their signatures are not parsed, issue 35)
+    for page in sorted((out / "api").glob("*.html")):
+        assert "~knotmm" not in page.read_text(), page.name
+        assert "~pathlib" not in page.read_text(), page.name
     for page in ("model", "architecture", "guide/index", "api/index"):
         assert (out / f"{page}.html").is_file(), page
