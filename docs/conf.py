@@ -69,8 +69,25 @@ def _short_type_names(app, what, name, obj, options, signature, return_annotatio
     return signature, return_annotation
 
 
+def _write_notebooks(app, exception):
+    """Each MyST notebook of docs/notebooks/ also as a Jupyter notebook beside its page
+    (``notebooks/NAME.ipynb`` in the built site, linked from the page), read by myst-nb's own
+    reader, without outputs: open it in Jupyter and run it."""
+    if exception is not None or app.builder.format != "html":
+        return
+    import nbformat
+    from myst_nb.core.read import read_myst_markdown_notebook
+
+    out = Path(app.outdir) / "notebooks"
+    out.mkdir(parents=True, exist_ok=True)
+    for page in sorted((ROOT / "docs" / "notebooks").glob("*.md")):
+        notebook = read_myst_markdown_notebook(page.read_text(), path=str(page))
+        nbformat.write(notebook, str(out / f"{page.stem}.ipynb"))
+
+
 def setup(app):
     app.connect("autodoc-process-signature", _short_type_names)
+    app.connect("build-finished", _write_notebooks)
 
 
 # -- MyST and myst-nb -----------------------------------------------------------------------

@@ -38,6 +38,14 @@ def test_sphinx_build_passes_with_warnings_as_errors(tmp_path):
     assert "RunData(" in notebook and "60 beads, 1 closed chain" in notebook
     assert "3dmolviewer" in notebook  # the py3Dmol view
     assert "V [d/tau_d]" in notebook  # the analysis summary
+    # ... and as a Jupyter notebook beside the page, linked from it, with the page's code
+    import nbformat
+
+    assert 'href="first_run.ipynb"' in notebook
+    ipynb = nbformat.read(str(out / "notebooks" / "first_run.ipynb"), as_version=4)
+    nbformat.validate(ipynb)
+    code = [c.source for c in ipynb.cells if c.cell_type == "code"]
+    assert any("knotmm.RunConfig.from_dict" in c for c in code)
     # no signature shows a type as Sphinx's "~module.Name" text (dataclasses with a factory
     # default: their signatures are not parsed, issue 35)
     for page in sorted((out / "api").glob("*.html")):
