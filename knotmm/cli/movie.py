@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from knotmm.movie import DEFAULT_DPI
+
 __all__ = ["add_parser", "execute"]
 
 
@@ -51,8 +53,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--dpi",
         type=float,
-        default=80.0,
-        help="resolution, up to 600; the frame is 12 x 4.6 inches (default 80)",
+        default=DEFAULT_DPI,
+        help=f"resolution, up to 600; the frame is 12 x 4.6 inches (default {DEFAULT_DPI:g})",
     )
     bar = p.add_mutually_exclusive_group()
     bar.add_argument("--progress", dest="progress", action="store_true", default=None,

@@ -70,6 +70,24 @@ def test_fallen_counts_from_the_runs_start_in_a_movie_started_later(tiny_run, tm
     assert z[0] - z[4] > 1.0  # it had fallen before the movie starts
 
 
+def test_a_default_frame_is_readable_and_its_texts_do_not_overlap():
+    """At the default resolution every text is at least 11 px (tick labels of 9 pt at 100
+    dpi; they were 6 px) and no two texts overlap, the 3D panel's ticks and labels included."""
+    from drawn_text import overlapping_texts, smallest_text_px
+
+    from knotmm.movie import DEFAULT_DPI, _Scene
+    from knotmm.shapes import torus_knot
+
+    x = torus_knot(2, 3, 90)
+    positions = np.stack([x, x - [0.0, 0.0, 3.0]])
+    com = positions.mean(axis=1)
+    scene = _Scene(positions, com, 0, 0, DEFAULT_DPI, "T(2,3), N = 90")
+    image = scene.draw(positions[1] - com[1], np.zeros((1, 3)), "t = 1.0    fallen 3.0 d")
+    assert image.shape == (460, 1200, 3)
+    assert smallest_text_px(scene.fig) >= 11.0
+    assert overlapping_texts(scene.fig) == []
+
+
 @pytest.mark.skipif(not HAVE_FFMPEG, reason="imageio-ffmpeg not installed")
 def test_mp4_has_the_expected_frames(tiny_run, tmp_path, capsys):
     import imageio_ffmpeg
