@@ -66,6 +66,7 @@ __all__ = [
     "platform_names",
     "plugin_platforms",
     "resolve_engine",
+    "select_platform",
 ]
 
 log = logging.getLogger(__name__)
@@ -173,6 +174,49 @@ def resolve_engine(requested: str, integrator: str, peclet: float = math.inf,
     if not has_method or (platform != "auto" and platform not in plugin_platforms()):
         return PYTHON
     return PLUGIN
+
+
+def select_platform(name: str, n_beads: int, threads: int = 1, engine: str = PYTHON,
+                    precision: str = "auto"):
+    """Resolve a platform name to ``(openmm.Platform, properties)``.
+
+    ``"auto"`` (:func:`knotmm.engine.engines.auto_platform`) takes the CPU platform with
+    ``threads`` threads (1 by default: for the chain sizes of the study the force kernels are
+    too small to gain from threads); only for ``n_beads >= 2000`` a device platform (CUDA,
+    HIP, OpenCL) with a real device that OpenMM supports (and, for the plugin ``engine``, on
+    which the plugin has its kernel). A device platform runs in ``precision``
+    (``run.precision``: ``"auto"`` is mixed, or ``"double"``).
+
+    Raises
+    ------
+    ConfigError
+        A platform this OpenMM does not have, or ``precision = "double"`` on the CPU
+        platform (its forces are single precision).
+    """
+    import openmm
+
+    available = platform_names()
+    pinned = {}
+    if name == "auto":
+        name, pinned = auto_platform(n_beads, engine, available)
+    if name not in available:
+        raise ConfigError(
+            f"run.platform = {name!r}: not available in this OpenMM installation "
+            f"(available: {', '.join(available)}); use run.platform = \"auto\""
+        )
+    if precision == "double" and name == "CPU":
+        raise ConfigError(
+            'run.precision = "double": the CPU platform computes forces in single precision; '
+            'use run.platform = "Reference" (double, one thread) or a device platform, or '
+            'run.precision = "auto"')
+    platform = openmm.Platform.getPlatformByName(name)
+    properties = {}
+    if name == "CPU":
+        properties["Threads"] = str(int(threads))
+    elif name in DEVICE_PLATFORMS:
+        properties["Precision"] = "mixed" if precision == "auto" else precision
+    properties.update(pinned)
+    return platform, properties
 
 
 def platform_names() -> list[str]:

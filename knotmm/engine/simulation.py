@@ -43,14 +43,7 @@ from openmm import unit
 from knotmm.dynamics.deterministic import RK23, Integrator
 from knotmm.engine.affinity import CorePin
 from knotmm.engine.checkpoint import read_checkpoint, write_checkpoint
-from knotmm.engine.engines import (
-    DEVICE_PLATFORMS,
-    PYTHON,
-    auto_platform,
-    make_engine,
-    platform_names,
-    resolve_engine,
-)
+from knotmm.engine.engines import PYTHON, make_engine, resolve_engine, select_platform
 from knotmm.engine.interrupt import raise_if_requested
 from knotmm.engine.openmm_state import state_array
 from knotmm.engine.schedule import landing_slack
@@ -59,50 +52,9 @@ from knotmm.model.layout import ChainLayout
 from knotmm.model.system import FORCE_GROUPS, ChainModel, chain_system, site_positions
 from knotmm.model.topology import bead_topology
 
-__all__ = ["Simulation", "select_platform"]
+__all__ = ["Simulation"]
 
 log = logging.getLogger(__name__)
-
-
-def select_platform(name: str, n_beads: int, threads: int = 1, engine: str = PYTHON,
-                    precision: str = "auto"):
-    """Resolve a platform name to ``(openmm.Platform, properties)``.
-
-    ``"auto"`` (:func:`knotmm.engine.engines.auto_platform`) takes the CPU platform with
-    ``threads`` threads (1 by default: for the chain sizes of the study the force kernels are
-    too small to gain from threads); only for ``n_beads >= 2000`` a device platform (CUDA,
-    HIP, OpenCL) with a real device that OpenMM supports (and, for the plugin ``engine``, on
-    which the plugin has its kernel). A device platform runs in ``precision``
-    (``run.precision``: ``"auto"`` is mixed, or ``"double"``).
-
-    Raises
-    ------
-    ConfigError
-        A platform this OpenMM does not have, or ``precision = "double"`` on the CPU
-        platform (its forces are single precision).
-    """
-    available = platform_names()
-    pinned = {}
-    if name == "auto":
-        name, pinned = auto_platform(n_beads, engine, available)
-    if name not in available:
-        raise ConfigError(
-            f"run.platform = {name!r}: not available in this OpenMM installation "
-            f"(available: {', '.join(available)}); use run.platform = \"auto\""
-        )
-    if precision == "double" and name == "CPU":
-        raise ConfigError(
-            'run.precision = "double": the CPU platform computes forces in single precision; '
-            'use run.platform = "Reference" (double, one thread) or a device platform, or '
-            'run.precision = "auto"')
-    platform = openmm.Platform.getPlatformByName(name)
-    properties = {}
-    if name == "CPU":
-        properties["Threads"] = str(int(threads))
-    elif name in DEVICE_PLATFORMS:
-        properties["Precision"] = "mixed" if precision == "auto" else precision
-    properties.update(pinned)
-    return platform, properties
 
 
 class Simulation:
@@ -117,7 +69,7 @@ class Simulation:
     integrator : Integrator, optional
         Time stepper; default :class:`knotmm.dynamics.deterministic.RK23` with tolerance 1e-4 d.
     platform : str
-        OpenMM platform name or ``"auto"`` (see :func:`select_platform`).
+        OpenMM platform name or ``"auto"`` (see :func:`knotmm.engine.engines.select_platform`).
     threads : int
         Threads of the CPU platform.
     max_bond_length : float

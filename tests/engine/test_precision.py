@@ -10,7 +10,7 @@ import pytest
 
 from knotmm.config import RunConfig
 from knotmm.engine import engines
-from knotmm.engine.simulation import select_platform
+from knotmm.engine.engines import select_platform
 from knotmm.errors import ConfigError
 
 
