@@ -57,3 +57,25 @@ def test_ensemble_n60_replica_0_reproduces_its_readme_row(tmp_path):
     frame = data["output"]["frame_interval"]
     assert d["window"][0] == pytest.approx(start, abs=frame)
     assert d["window"][1] == pytest.approx(end, abs=frame)
+
+
+PAIRS = Path(__file__).resolve().parents[2] / "examples" / "filament_pairs"
+
+
+def test_filament_pairs_single_rods_depth_is_the_readmes(tmp_path):
+    """examples/filament_pairs: one rod at B = 0.96 and 9.6 hangs 0.0172 and 0.1719 d deep
+    (README, section 1); the example's own function, rerun as the script runs it (400 tau_d,
+    a frame every tau_d; a few seconds), must give the README's digits."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("run_pairs", PAIRS / "run_pairs.py")
+    pairs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(pairs)
+    readme = (PAIRS / "README.md").read_text()
+    for a, b in ((5000.0, "0.96"), (500.0, "9.6")):
+        row = re.search(rf"\| {a:g} \| {b} \| ([\d.]+) \|", readme)
+        directory = pairs.run_case(f"single_{a:g}", pairs.single(a), tmp_path, 400.0, 1.0)
+        from knotmm.io.run_data import load_run
+
+        depth = float(pairs.depth(load_run(directory).positions)[-1])
+        assert f"{depth:.4f}" == row.group(1), (a, depth, row.group(1))
