@@ -5,25 +5,31 @@ the objects it decided on: the checked template and the :class:`~knotmm.engine.s
 Simulation` on its layout. Each decision is made here once, in this order (an error stops
 at the first, as ``knotmm run`` reports it; nothing is written):
 
-1. the stepping (:class:`Stepping`): ``run.integrator = "auto"`` and the step resolved, the
-   tolerance, the step bounds, kT, the seed; the integrator built once, which checks it
-   against ``run.peclet`` before the template is built;
-2. ``run.on_topology_change = "stop"`` against topoly;
-3. the template (:class:`TemplateSpec`: its keys, perturbation and seed rule), built by
-   :func:`knotmm.shapes.builder.build_template` with the plan's memory budget
-   (:class:`knotmm.shapes.resources.RunResources`: the geometry code gets it as values,
-   not as ``run.*`` keys); the noise method for the chain's size;
+1. the typed parts read from the run file: the stepping (:class:`Stepping`: ``run.integrator
+   = "auto"`` and the step resolved, the tolerance, the step bounds, kT, the seed), the
+   template spec (:class:`TemplateSpec`: its keys, the perturbation's seeds, the longest
+   bond), the memory budget (:class:`knotmm.shapes.resources.RunResources`), the topology
+   checks (:class:`~knotmm.engine.knot_checks.TopologyChecks`), the output
+   (:class:`Output`) and the duration;
+2. the integrator, built once from the stepping, which checks it against ``run.peclet``
+   before the template is built; ``run.on_topology_change = "stop"`` against topoly;
+3. the template, built by :func:`knotmm.shapes.builder.build_template` from the spec and
+   the budget (the geometry code gets them as values, never ``run.*`` keys); the noise
+   method for the chain's size;
 4. the Simulation: engine and platform resolved (:meth:`Simulation.from_config`), the
    precision asked of OpenMM (:class:`Placement`);
 5. ``run.integrator = "auto"`` at ``Pe = inf``: ONE stiffness probe on that Simulation,
-   which is kept when the choice keeps its integrator (else the final one is built once);
+   which is kept when the choice keeps its integrator; a Python-engine Simulation takes
+   the other integrator in place (:meth:`Simulation.use_integrator`: no second Context),
+   a plugin one is built again with it;
 6. the record: the configuration with every resolved key (one :meth:`RunConfig.replace`,
-   which validates only those keys), and the reasons ``run.toml`` records
-   (``integrator_choice``).
+   which validates only those keys) as ``run.toml`` and the checkpoints write it
+   (:attr:`RunPlan.record`), and the reasons ``run.toml`` records (``integrator_choice``).
 
 :func:`knotmm.workflow.run` (and through it replicas and sweep points) and ``sweep
 --dry-run`` (:func:`knotmm.workflow.build_run`) start from it; below it nothing reads the run
-file again to decide.
+file again: the run is driven by the plan's parts (``tests/workflow/test_config_walk.py``
+measures it).
 """
 
 from __future__ import annotations
@@ -38,14 +44,16 @@ from typing import Any
 from knotmm.config import RunConfig, resolve_stepping, resolve_tolerance
 from knotmm.dynamics import registry
 from knotmm.dynamics.registry import AUTO, AUTO_STIFFNESS, REGISTRY, auto_deterministic
-from knotmm.engine.knot_checks import check_stop_on_change
+from knotmm.engine.knot_checks import TopologyChecks, check_stop_on_change
 from knotmm.engine.simulation import Simulation
 from knotmm.model.parameters import ChainModel
 from knotmm.shapes.resources import RunResources
+from knotmm.shapes.spec import TemplateSpec
 from knotmm.units import thermal_energy
 
 __all__ = [
     "Output",
+    "PlanParts",
     "Placement",
     "PreparedRun",
     "RunPlan",
@@ -134,52 +142,6 @@ class Stepping:
 
 
 @dataclass(frozen=True)
-class TemplateSpec:
-    """The start a run asks for: its ``[knot]`` table or ``[[chains]]`` entries.
-
-    Attributes
-    ----------
-    kind : str
-        ``knot.kind`` (the first chain's for ``[[chains]]``).
-    chains : tuple of Mapping
-        The chains' keys, one read-only table each (one for a ``[knot]`` run).
-    perturbation : float
-        ``knot.perturbation``, in d (the largest of the chains').
-    seeds : tuple of int or None
-        Per chain, the seed of its perturbation (``knot.seed``, else ``run.seed``, plus the
-        chain's index for ``[[chains]]`` entries without their own seed); None where a chain
-        is not perturbed.
-    """
-
-    kind: str
-    chains: tuple[Mapping[str, Any], ...]
-    perturbation: float
-    seeds: tuple[int | None, ...]
-
-    @classmethod
-    def of(cls, cfg: RunConfig) -> TemplateSpec:
-        """The spec of ``cfg`` (its ``[knot]`` or ``[[chains]]`` keys)."""
-        entries = cfg.chains
-        several = entries is not None
-        if not several:
-            entries = [cfg.table("knot")]
-        seeds = []
-        for c, entry in enumerate(entries):
-            if not float(entry.get("perturbation") or 0.0) > 0.0:
-                seeds.append(None)
-            elif entry.get("seed") is not None:
-                seeds.append(int(entry["seed"]))
-            else:
-                seeds.append(int(cfg["run.seed"]) + (c if several else 0))
-        return cls(
-            kind=str(entries[0]["kind"]),
-            chains=tuple(MappingProxyType(dict(e)) for e in entries),
-            perturbation=max(float(e.get("perturbation") or 0.0) for e in entries),
-            seeds=tuple(seeds),
-        )
-
-
-@dataclass(frozen=True)
 class Placement:
     """Where a run computes: engine, OpenMM platform and its precision, threads.
 
@@ -253,6 +215,43 @@ class Output:
 
 
 @dataclass(frozen=True)
+class PlanParts:
+    """The parts of a plan read from the run file alone (:func:`prepare`'s first step):
+    nothing built, nothing checked against a template or a platform. What a saved run's
+    orbit takes of its run (:func:`knotmm.orbit.start.start_from_run`).
+
+    Attributes
+    ----------
+    stepping : Stepping
+        ``auto`` resolved by the Peclet number alone (the stiffness choice needs the
+        Simulation).
+    template : knotmm.shapes.spec.TemplateSpec
+    resources : knotmm.shapes.resources.RunResources
+    checks : knotmm.engine.knot_checks.TopologyChecks
+    output : Output
+    duration : float
+        ``run.duration``, in tau_d.
+    model : ChainModel
+    """
+
+    stepping: Stepping
+    template: TemplateSpec
+    resources: RunResources
+    checks: TopologyChecks
+    output: Output
+    duration: float
+    model: ChainModel
+
+    @classmethod
+    def of(cls, cfg: RunConfig) -> PlanParts:
+        """The parts of ``cfg``."""
+        return cls(stepping=Stepping.of(cfg), template=TemplateSpec.of(cfg),
+                   resources=RunResources.of(cfg), checks=TopologyChecks.of(cfg),
+                   output=Output.of(cfg), duration=float(cfg["run.duration"]),
+                   model=ChainModel.from_config(cfg))
+
+
+@dataclass(frozen=True)
 class RunPlan:
     """Every decision made before a run, made once (:func:`prepare`).
 
@@ -261,7 +260,11 @@ class RunPlan:
     config : RunConfig
         The run file as ``run.toml`` records it: every resolved key written back (the
         integrator and step used, not ``"auto"``; the template's keys).
-    template : TemplateSpec
+    record : dict
+        ``config`` as nested tables (:meth:`RunConfig.to_dict`), made once: what ``run.toml``
+        and every checkpoint write.
+    template : knotmm.shapes.spec.TemplateSpec
+        The start asked for (the seeds and the bond limit the template was built with).
     model : ChainModel
     stepping : Stepping
     placement : Placement
@@ -269,6 +272,10 @@ class RunPlan:
         What the run's memory depends on (checked against the memory available for the
         chain built).
     output : Output
+    duration : float
+        ``run.duration``, in tau_d.
+    checks : knotmm.engine.knot_checks.TopologyChecks
+        The knot-type and linking-number checks during the run.
     n_beads : int
     reasons : Mapping of str to str
         Why a choice was made, as ``run.toml``'s ``[knotmm]`` records it
@@ -276,12 +283,15 @@ class RunPlan:
     """
 
     config: RunConfig
+    record: dict[str, Any]
     template: TemplateSpec
     model: ChainModel
     stepping: Stepping
     placement: Placement
     resources: RunResources
     output: Output
+    duration: float
+    checks: TopologyChecks
     n_beads: int
     reasons: Mapping[str, str] = field(default_factory=dict)
 
@@ -317,37 +327,47 @@ def prepare(cfg: RunConfig, identify: str = "now") -> PreparedRun:
     """
     from knotmm.shapes.builder import build_template
 
-    stepping = Stepping.of(cfg)
+    # 1. every part read from the run file, once
+    parts = PlanParts.of(cfg)
+    stepping, spec, resources = parts.stepping, parts.template, parts.resources
     reason = _peclet_reason(cfg, stepping.integrator)
     by_stiffness = cfg["run.integrator"] == AUTO and not math.isfinite(stepping.peclet)
-    # built once: checks the integrator against run.peclet before the template
-    integrator = registry.integrator_from_config(cfg)
-    check_stop_on_change(cfg)
-    resources = RunResources.of(cfg)
-    template = build_template(cfg, identify=identify, resources=resources)
+    # 2. built once: checks the integrator against run.peclet before the template
+    registry.warn_brownian_step(stepping.integrator, stepping.timestep, stepping.peclet)
+    integrator = stepping.make_integrator()
+    check_stop_on_change(parts.checks)
+    # 3. the template, from typed values
+    template = build_template(cfg, identify=identify, spec=spec, resources=resources)
     n_beads = int(template.positions.shape[0])
     stepping = replace(stepping, noise_method=resources.noise_method(n_beads))
     record = cfg.replace({**stepping.record, **template.resolved})
+    # 4. the Simulation
     sim = Simulation.from_config(record, template.positions, layout=template.layout,
                                  integrator=integrator)
+    # 5. the stiffness choice, probed once on that Simulation
     if by_stiffness:
         choice, reason = _stiffness_choice(sim)
         if choice != stepping.integrator:
             stepping = replace(stepping, integrator=choice)
             record = record.replace({"run.integrator": choice})
-            # the engine already chosen (and warned about) when the new integrator has it
-            engine = sim.engine if sim.engine in REGISTRY[choice].engines else None
-            sim = Simulation.from_config(record, template.positions, engine=engine,
-                                         layout=template.layout,
-                                         integrator=stepping.make_integrator())
+            integrator = stepping.make_integrator()
+            if not sim.use_integrator(integrator):
+                # the engine already chosen (and warned about) when the new integrator has it
+                engine = sim.engine if sim.engine in REGISTRY[choice].engines else None
+                sim = Simulation.from_config(record, template.positions, engine=engine,
+                                             layout=template.layout, integrator=integrator)
+    # 6. the record
     plan = RunPlan(
         config=record,
-        template=TemplateSpec.of(cfg),
+        record=record.to_dict(),
+        template=spec,
         model=sim.model,
         stepping=stepping,
         placement=Placement.of(sim, record),
         resources=resources,
-        output=Output.of(record),
+        output=parts.output,
+        duration=parts.duration,
+        checks=parts.checks,
         n_beads=n_beads,
         reasons=MappingProxyType({"integrator_choice": reason} if reason else {}),
     )

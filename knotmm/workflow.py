@@ -5,7 +5,8 @@ reporters in :mod:`knotmm.engine` (``docs/architecture.md``). :func:`run`, as ps
 
     plan the run once (knotmm.plan.prepare): the integrator and step ("auto" resolved), the
         template, the Simulation, the reasons run.toml records
-        (a bad config, template or platform fails here: nothing written)
+        (a bad config, template or platform fails here: nothing written); from here on
+        the run reads the plan's parts, never the run file
     lock the directory (a live owner: refused); check it, clear it with overwrite
     write topology.pdb, view.vmd, run.toml (status = "running"; a failure removes them)
     attach reporters: trajectory, observables, knot checks, checkpoint, progress
@@ -38,6 +39,7 @@ from knotmm.engine.checkpoint import CheckpointReporter, read_checkpoint
 from knotmm.engine.interrupt import StopRequested, describe_signal, stop_signal
 from knotmm.engine.knot_checks import (
     TemplateKnotCheck,
+    TopologyChecks,
     finish_checks,
     knot_watch,
     linking_watch,
@@ -190,11 +192,10 @@ def run(
     wall0 = time.perf_counter()
     start_worker()  # topoly's start-up in the knot worker overlaps building the run
     directory = Path(directory if directory is not None else cfg["output.directory"])
-    built = prepare(cfg, identify="later")  # the template's knot type judged beside the run
-    plan, template, sim = built.plan, built.template, built.simulation
-    cfg = plan.config
     if cfg["output.directory"] != str(directory):
         cfg = cfg.replace({"output.directory": str(directory)})
+    built = prepare(cfg, identify="later")  # the template's knot type judged beside the run
+    plan, template, sim = built.plan, built.template, built.simulation
     if directory.exists() and not directory.is_dir():
         prepare_directory(directory, overwrite)  # says it is a file
     lock = RunLock(directory, "run")
@@ -215,16 +216,17 @@ def run(
                 "integrator": sim.integrator.describe(),
                 **plan.reasons,
                 "platform": sim.platform_name,
-                "frame_interval": cfg["output.frame_interval"],
+                "frame_interval": plan.output.frame_interval,
                 "start_z": float(sim.positions[:, 2].mean()),
             }
             if template.notes:
                 facts["notes"] = list(template.notes)
-            write_run_toml(directory, cfg, facts)
+            write_run_toml(directory, plan.record, facts)
     except BaseException:
         lock.release()
         raise
-    return _drive(sim, cfg, directory, facts, None, progress, wall0, lock, template,
+    course = _Course(plan.record, plan.output, plan.duration, plan.checks)
+    return _drive(sim, course, directory, facts, None, progress, wall0, lock, template,
                   wait_for_checks)
 
 
@@ -333,7 +335,7 @@ def resume(
             raise OutputError(describe_os_error(directory, exc)) from None
         raise
     log.info("resuming %s at t = %g tau_d (step %d)", directory, sim.time, sim.currentStep)
-    return _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
+    return _drive(sim, _Course.of(cfg), directory, facts, counters, progress, wall0, lock,
                   resumed.template, wait_for_checks, resumed)
 
 
@@ -390,7 +392,24 @@ def _check_same_physics(directory: Path, cfg: RunConfig, stored: dict | None) ->
         )
 
 
-def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
+@dataclass(frozen=True)
+class _Course:
+    """What driving a run takes of its plan (:class:`knotmm.plan.RunPlan`'s parts): the
+    record run.toml and the checkpoints write, the output, the duration, the checks."""
+
+    record: dict
+    output: Output
+    duration: float
+    checks: TopologyChecks
+
+    @classmethod
+    def of(cls, cfg: RunConfig) -> _Course:
+        """A resumed run's, from its run.toml."""
+        return cls(cfg.to_dict(), Output.of(cfg), float(cfg["run.duration"]),
+                   TopologyChecks.of(cfg))
+
+
+def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lock,
            template=None, wait_for_checks=False, resumed=None) -> RunResult:
     """Attach the reporters, run to ``run.duration``, and record the outcome in run.toml.
 
@@ -400,7 +419,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
     """
     resuming = counters is not None
     counters = counters or {"frames": 0, "rows": 0, "checkpoints": 0, "checks": 0}
-    output = Output.of(cfg)
+    output = course.output
     frame_interval = output.frame_interval
     obs_interval, ckpt_interval = output.observables_interval, output.checkpoint_interval
     reporters = []
@@ -421,16 +440,16 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
                               f"knotmm run --resume {directory}") from None
         reporters += [dcd, obs]
         record, positions, recorded, _ = resumed or (None, None, None, None)
-        watch = knot_watch(sim, cfg, facts, counters, record, positions)
+        watch = knot_watch(sim, course.checks, facts, counters, record, positions)
         if watch is not None:
             reporters.append(watch)
-        links = linking_watch(sim, cfg, facts, record)
+        links = linking_watch(sim, course.checks, facts, record)
         if links is not None:
             reporters.append(links)
         judge = TemplateKnotCheck(template, facts, frame_interval, recorded=recorded)
         if template is not None and template.knot_type_pending:
             reporters.append(judge)
-        config = cfg.to_dict()
+        config = course.record
 
         def current_counters(next_checkpoint):
             return {
@@ -445,7 +464,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
         ckpt = CheckpointReporter(directory / CHECKPOINT_FILE, ckpt_interval, current_counters,
                                   first_index=counters.get("checkpoints", 0),
                                   arrays=lambda: checks_positions(watch))
-        duration = cfg["run.duration"]
+        duration = course.duration
         bar = ProgressReporter(sim.time, duration, frame_interval, enabled=progress)
         reporters += [ckpt, bar]
         sim.reporters.extend(reporters)
@@ -457,7 +476,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
             # checks still running beside the run; a run asked to stop at a change
             # waits for every one of them
             finish_checks(judge, watch,
-                          wait_for_checks or cfg["run.on_topology_change"] == "stop")
+                          wait_for_checks or course.checks.on_change == "stop")
             status, message = STATUS_FINISHED, None
         except SimulationFault as exc:
             status, message = STATUS_FAULT, str(exc)
@@ -528,7 +547,7 @@ def _drive(sim, cfg, directory, facts, counters, progress, wall0, lock,
         try:
             with _signals_held():  # a second Ctrl-C must not leave status = "running"
                 retire_stale_analysis(directory)  # an analysis made while it ran
-                write_run_toml(directory, cfg, facts)
+                write_run_toml(directory, course.record, facts)
         except OutputError as exc:  # after a failed run, that failure is the one reported
             if status == STATUS_FINISHED:  # frames and checkpoint whole: exit 3, resumable
                 raise OutputFault(f"{exc}; the frames and checkpoint are kept: free the "

@@ -75,6 +75,7 @@ __all__ = [
     "resolve_tolerance",
     "timestep_help",
     "tolerance_help",
+    "warn_brownian_step",
 ]
 
 log = logging.getLogger(__name__)
@@ -459,6 +460,21 @@ def make(
         raise ConfigError(f"run.integrator = {name!r}: {exc}") from None
 
 
+def warn_brownian_step(name: str, timestep: float, peclet: float) -> None:
+    """Warn once per run when a Brownian step is too long for the stiff bond modes."""
+    if REGISTRY[name].brownian and math.isfinite(peclet) and timestep > _BROWNIAN_STEP_WARNING:
+        log.warning(
+            "run.timestep = %g with run.peclet = %g: above ~%g tau_d the stiff bond "
+            "modes are unstable or strongly biased (%g is a good step for ito_heun, %g "
+            "for leimkuhler_matthews)",
+            timestep,
+            peclet,
+            _BROWNIAN_STEP_WARNING,
+            DEFAULT_BROWNIAN_TIMESTEP,
+            DEFAULT_LM_TIMESTEP,
+        )
+
+
 def integrator_from_config(cfg: Mapping):
     """The integrator a run file asks for, deterministic or Brownian.
 
@@ -485,17 +501,7 @@ def integrator_from_config(cfg: Mapping):
     name, timestep = resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
     peclet = float(cfg["run.peclet"])
     thermal_energy(peclet)  # checks the range
-    if REGISTRY[name].brownian and math.isfinite(peclet) and timestep > _BROWNIAN_STEP_WARNING:
-        log.warning(
-            "run.timestep = %g with run.peclet = %g: above ~%g tau_d the stiff bond "
-            "modes are unstable or strongly biased (%g is a good step for ito_heun, %g "
-            "for leimkuhler_matthews)",
-            timestep,
-            peclet,
-            _BROWNIAN_STEP_WARNING,
-            DEFAULT_BROWNIAN_TIMESTEP,
-            DEFAULT_LM_TIMESTEP,
-        )
+    warn_brownian_step(name, timestep, peclet)
     return make(
         name,
         timestep,

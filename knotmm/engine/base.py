@@ -106,6 +106,12 @@ class Engine:
         """Forget what is held for the current positions (they were replaced from outside)."""
         self.integrator.reset()
 
+    def use_integrator(self, integrator) -> bool:
+        """Step with ``integrator`` from now on, before the first step, on the same Context
+        (a run's ``auto`` choice after its stiffness probe). False: this engine cannot (its
+        integrator lives in the Context): the caller builds a new Simulation."""
+        return False
+
     def stiffness(self, sim) -> float:
         """Spectral radius of the velocity Jacobian at ``sim``'s positions, in 1/tau_d.
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass
 
 from knotmm.engine.check_record import KeptIdentifier, json_safe, restore_knot_watch
 from knotmm.engine.interrupt import raise_if_requested
@@ -27,6 +28,7 @@ __all__ = [
     "ChainsIdentifier",
     "LinkingWatch",
     "TemplateKnotCheck",
+    "TopologyChecks",
     "checks_not_made",
     "check_stop_on_change",
     "finish_checks",
@@ -44,6 +46,27 @@ NO_TOPOLY_NOTE = ("note: knot type not checked (neither the template's nor along
                   "the knot type may change unseen; pip install 'knotmm[knots]' checks it (or set "
                   "run.topology_check_interval = 0 to run unchecked)")
 _no_topoly_said = False
+
+
+@dataclass(frozen=True)
+class TopologyChecks:
+    """How a run watches its topology (a part of the run plan, :mod:`knotmm.plan`).
+
+    Attributes
+    ----------
+    interval : float
+        ``run.topology_check_interval``, in tau_d (0: no checks).
+    on_change : {"warn", "stop"}
+        ``run.on_topology_change``.
+    """
+
+    interval: float
+    on_change: str
+
+    @classmethod
+    def of(cls, cfg) -> TopologyChecks:
+        """The checks of a run configuration."""
+        return cls(float(cfg["run.topology_check_interval"]), str(cfg["run.on_topology_change"]))
 
 
 class TemplateKnotCheck(TimeScheduled):
@@ -86,12 +109,11 @@ class TemplateKnotCheck(TimeScheduled):
                                    "ended before topoly had started in the knot worker"]
 
 
-def check_stop_on_change(cfg) -> None:
+def check_stop_on_change(checks: TopologyChecks) -> None:
     """A run asked to stop at a change of knot type must be able to see one."""
     from knotmm.knots.identify import topoly_available
 
-    if (cfg["run.on_topology_change"] == "stop" and cfg["run.topology_check_interval"] > 0
-            and not topoly_available()):
+    if checks.on_change == "stop" and checks.interval > 0 and not topoly_available():
         raise ConfigError(
             'run.on_topology_change = "stop" needs knot-type checks, and topoly is not '
             "installed: pip install 'knotmm[knots]', or set run.on_topology_change = \"warn\" "
@@ -99,13 +121,13 @@ def check_stop_on_change(cfg) -> None:
         )
 
 
-def knot_watch(sim, cfg, facts, counters, record=None, positions=None):
+def knot_watch(sim, checks: TopologyChecks, facts, counters, record=None, positions=None):
     """The knot-type reporter of a run, or None (checks off, or no topoly).
 
     Parameters
     ----------
     sim : Simulation
-    cfg : RunConfig
+    checks : TopologyChecks
     facts : dict
         run.toml's ``[knotmm]`` facts (``knot_type_watch`` is noted there).
     counters : dict
@@ -120,7 +142,7 @@ def knot_watch(sim, cfg, facts, counters, record=None, positions=None):
     from knotmm.knots.identify import topoly_available
     from knotmm.knots.worker import IsolatedKnotIdentifier
 
-    if not cfg["run.topology_check_interval"] > 0:
+    if not checks.interval > 0:
         return None
     if not topoly_available():  # the core install: said once, at normal verbosity
         global _no_topoly_said
@@ -141,8 +163,8 @@ def knot_watch(sim, cfg, facts, counters, record=None, positions=None):
     identify = KeptIdentifier(identify)
     identify.start()  # off the run's path: the worker imports topoly meanwhile
     watch = KnotTypeWatch(
-        cfg["run.topology_check_interval"],
-        on_change=cfg["run.on_topology_change"],
+        checks.interval,
+        on_change=checks.on_change,
         first_index=max(1, counters.get("checks", 0)),
         identify=identify,
     )
@@ -303,21 +325,21 @@ class LinkingWatch(TimeScheduled):
         logging.getLogger(__name__).warning(message)
 
 
-def linking_watch(sim, cfg, facts, record=None) -> LinkingWatch | None:
+def linking_watch(sim, checks: TopologyChecks, facts, record=None) -> LinkingWatch | None:
     """The linking-number reporter of a run with two or more closed chains, or None.
 
     ``record``: a resumed run's record of its checks
     (:func:`knotmm.engine.check_record.resumed_record`), whose ``linking`` table the watch
     continues; None: a new run, whose start numbers go into ``facts`` (``linking_numbers``).
     """
-    interval = cfg["run.topology_check_interval"]
+    interval = checks.interval
     if interval <= 0 or sum(sim.layout.closed) < 2:
         return None
     state = (record or {}).get("linking")
     index = int(sim.time / interval + 1e-9) + 1
     if state is not None and state.get("index") is not None and state.get("interval") == interval:
         index = int(state["index"])  # a check due at the checkpoint's time is made there
-    watch = LinkingWatch(interval, sim.layout, on_change=cfg["run.on_topology_change"],
+    watch = LinkingWatch(interval, sim.layout, on_change=checks.on_change,
                          first_index=index)
     if state is None:
         watch.start = watch.numbers(sim.positions) or {}

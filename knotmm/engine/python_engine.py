@@ -83,6 +83,15 @@ class PythonEngine(Engine):
         self.integrator.reset()
         self._held_stale = False
 
+    def use_integrator(self, integrator) -> bool:
+        """The integrator is Python: taken in place when it has the same step (which the
+        Context's never-stepped ``VerletIntegrator`` holds) and no step was taken yet."""
+        if self.n_accepted or integrator.timestep != self.integrator.timestep:
+            return False
+        self.integrator = integrator
+        self._held_stale = False
+        return True
+
     def stiffness(self, sim) -> float:
         from knotmm.dynamics.deterministic import RKC2
 

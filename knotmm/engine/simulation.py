@@ -329,6 +329,15 @@ class Simulation:
         self._engine.n_evaluations += 1
         return rpy_velocities(positions, self.forces(positions), threads=self.mobility_threads)
 
+    def use_integrator(self, integrator) -> bool:
+        """Step with a fresh ``integrator`` instead, before the first step, keeping the
+        Context (:meth:`knotmm.engine.base.Engine.use_integrator`: the Python engine can;
+        False where the engine cannot, and nothing changed)."""
+        if self.currentStep or not self._engine.use_integrator(integrator):
+            return False
+        self.integrator = integrator
+        return True
+
     def stiffness(self) -> float:
         """Spectral radius of the velocity Jacobian at the current positions, in 1/tau_d.
 

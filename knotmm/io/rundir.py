@@ -158,7 +158,9 @@ def write_run_toml(directory, cfg, facts: dict[str, Any]) -> None:
     Parameters
     ----------
     directory : path
-    cfg : knotmm.config.RunConfig
+    cfg : knotmm.config.RunConfig or dict
+        The run file, or its tables as :meth:`~knotmm.config.RunConfig.to_dict` gives them
+        (a run's plan holds them: :attr:`knotmm.plan.RunPlan.record`).
     facts : dict
         The ``[knotmm]`` table; None values are left out.
 
@@ -175,7 +177,7 @@ def write_run_toml(directory, cfg, facts: dict[str, Any]) -> None:
     from knotmm import __version__
     from knotmm.io.atomic import write_text_atomic
 
-    data = cfg.to_dict()
+    data = cfg.to_dict() if hasattr(cfg, "to_dict") else dict(cfg)
     data["knotmm"] = {k: v for k, v in facts.items() if v is not None}
     text = run_file_header(__version__) + tomli_w.dumps(data)
     path = Path(directory) / RUN_FILE

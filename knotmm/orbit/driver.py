@@ -129,10 +129,7 @@ def _owned(out: Path, created: bool):
 
 
 def _make_flow_map(start, timestep, engine, threads):
-    from knotmm.model.parameters import ChainModel
-
-    return make_flow(start.positions, ChainModel.from_config(start.config), timestep,
-                     engine=engine, threads=threads)
+    return make_flow(start.positions, start.model, timestep, engine=engine, threads=threads)
 
 
 def _shoot(run_dir, start, flow, tolerance):

@@ -51,7 +51,9 @@ class OrbitStart:
     window : tuple of float
         The run's steady window, tau_d.
     config : knotmm.config.RunConfig
-        The run's configuration (its model).
+        The run's configuration (the continuation varies its keys).
+    model : knotmm.model.parameters.ChainModel
+        The run's model, from its plan's parts (:class:`knotmm.plan.PlanParts`).
     """
 
     positions: np.ndarray
@@ -59,6 +61,7 @@ class OrbitStart:
     tau_swirl: float
     window: tuple
     config: object
+    model: object
 
 
 def run_config(data):
@@ -92,6 +95,7 @@ def start_from_run(run_dir, t: float | None = None) -> OrbitStart:
     from knotmm.analysis.core import analyze
     from knotmm.analysis.shape import chains_of
     from knotmm.io.run_data import load_run
+    from knotmm.plan import PlanParts
 
     data = load_run(Path(run_dir))
     chains = chains_of(data)
@@ -102,9 +106,10 @@ def start_from_run(run_dir, t: float | None = None) -> OrbitStart:
             f"use a run of one knot"
         )
     cfg = run_config(data)
-    if math.isfinite(float(cfg["run.peclet"])):
+    parts = PlanParts.of(cfg)  # the run's plan, as far as a saved run needs it
+    if math.isfinite(parts.stepping.peclet):
         raise ConfigError(
-            f"{run_dir}: run.peclet = {cfg['run.peclet']:g}; periodic orbits are states of the "
+            f"{run_dir}: run.peclet = {parts.stepping.peclet:g}; periodic orbits are states of the "
             f"deterministic model: use a run with run.peclet unset (infinite)"
         )
     result = analyze(data, knot_samples=0, fit=False)
@@ -128,7 +133,7 @@ def start_from_run(run_dir, t: float | None = None) -> OrbitStart:
         )
     k = int(np.argmin(np.abs(times - t)))
     x = centre(np.asarray(data.positions[k], dtype=float))
-    return OrbitStart(x, float(times[k]), float(result.tau_swirl), window, cfg)
+    return OrbitStart(x, float(times[k]), float(result.tau_swirl), window, cfg, parts.model)
 
 
 def shape_speed(flow, x: np.ndarray) -> float:

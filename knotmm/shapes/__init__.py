@@ -9,7 +9,10 @@ Every template is a closed polygon of beads in d (``docs/model.md``, "Starting s
   :func:`named_knot`, :func:`from_file`, :func:`mirror_image` (arrays);
 * :mod:`~knotmm.shapes.checks`: :func:`check_template` (bonds, steric distances, knot type);
 * :mod:`~knotmm.shapes.builder`: :func:`build_template`, the one builder that reads a run
-  file, :func:`minimal_beads`, and :func:`build_system` (run file -> OpenMM objects).
+  file (its ``[knot]`` and ``[model]`` keys; what it takes of the run comes as a
+  :class:`~knotmm.shapes.spec.TemplateSpec` and a
+  :class:`~knotmm.shapes.resources.RunResources`), :func:`minimal_beads`, and
+  :func:`build_system` (run file -> OpenMM objects).
 
 Reading a frame of a PDB/DCD file lives in :mod:`knotmm.io.structure`.
 

@@ -46,6 +46,7 @@ from knotmm.shapes.curves import braid_curve, circle_curve, torus_curve
 from knotmm.shapes.geometry import TooFewBeadsError, mirror_image, place_on_curve
 from knotmm.shapes.knotinfo import TORUS_NAMES, named_knot_word, resolve_name, symmetry_type
 from knotmm.shapes.resources import RunResources, check_memory
+from knotmm.shapes.spec import TemplateSpec
 from knotmm.shapes.system_builders import build_chains, build_link, build_open, is_link, is_open
 from knotmm.shapes.template import PendingKnotCheck, Template
 from knotmm.shapes.validation import (
@@ -251,9 +252,9 @@ def _explicit_radius_notes(cfg, beads: int, chord: float) -> list[str]:
     ]
 
 
-def _relaxed_notes(check: TemplateCheck, cfg, is_file: bool) -> list[str]:
+def _relaxed_notes(check: TemplateCheck, cfg, is_file: bool, max_bond: float) -> list[str]:
     """Notes on a start checked loosely (a file, an explicit radius); an error for bonds past
-    run.max_bond_length, which would stop the run at its first step."""
+    ``max_bond`` (``run.max_bond_length``), which would stop the run at its first step."""
     bond, steric = cfg["model.bond_length"], check.steric_range
     notes = []
     if check.min_distance < steric:
@@ -266,7 +267,7 @@ def _relaxed_notes(check: TemplateCheck, cfg, is_file: bool) -> list[str]:
             f"bonds range {check.bond_min:.3f}-{check.bond_max:.3f} d "
             f"(model.bond_length={bond:g})"
         )
-    if check.bond_max > cfg["run.max_bond_length"]:
+    if check.bond_max > max_bond:
         where = (
             f"knot.path={cfg['knot.path']!r} frame {cfg['knot.frame']}"
             if is_file
@@ -279,7 +280,7 @@ def _relaxed_notes(check: TemplateCheck, cfg, is_file: bool) -> list[str]:
         )
         raise TemplateError(
             f"{where}: bond {check.worst_bond} is {check.bond_max:.3f} d, longer than "
-            f"run.max_bond_length={cfg['run.max_bond_length']:g}; {hint}"
+            f"run.max_bond_length={max_bond:g}; {hint}"
         )
     return notes
 
@@ -305,6 +306,7 @@ def _ring_closure_notes(structure, cfg, allow_open_chain: bool) -> list[str]:
 
 
 def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now",
+                   spec: TemplateSpec | None = None,
                    resources: RunResources | None = None) -> Template:
     """Build and check the starting shape a run file asks for.
 
@@ -318,10 +320,9 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
     ----------
     cfg : RunConfig
         Uses ``knot.*`` (kind, p, q, word, name, path, frame, topology, beads,
-        minor_radius, major_radius, mirror, perturbation, seed), ``model.bond_length``,
-        ``model.lj_sigma``, ``run.seed``, ``run.max_bond_length`` and, for the memory
-        estimate when ``resources`` is not given, ``run.integrator``, ``run.peclet``,
-        ``run.timestep`` and ``run.noise``.
+        minor_radius, major_radius, mirror, perturbation), ``model.bond_length`` and
+        ``model.lj_sigma``; never a ``run.*`` key (``spec`` and ``resources`` hold what the
+        template takes from the ``[run]`` table).
     allow_open_chain : bool, optional
         For ``knot.kind = "file"``: whether a file whose bonds leave the ring open (no bond
         from the last bead to the first) is accepted with a note, and closed. By default
@@ -331,10 +332,12 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         it; ``"later"`` (a run, which must not wait for topoly's start-up) sends the
         template to the worker and returns: :meth:`Template.settle_knot_type` judges the
         answer once it is back, and a wrong knot type raises there; ``"skip"``: not at all.
+    spec : TemplateSpec, optional
+        The perturbation's seed of each chain and the longest bond accepted (the run plan's,
+        :attr:`knotmm.plan.RunPlan.template`); default :meth:`TemplateSpec.of` of ``cfg``.
     resources : RunResources, optional
         What the run's memory depends on (the run plan's,
-        :attr:`knotmm.plan.RunPlan.resources`); default: read from ``cfg``'s ``[run]``
-        table (:meth:`RunResources.of`).
+        :attr:`knotmm.plan.RunPlan.resources`); default :meth:`RunResources.of` of ``cfg``.
 
     Returns
     -------
@@ -366,23 +369,25 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
 
     A perturbation (``knot.perturbation`` > 0) adds independent normal displacements of that
     standard deviation, in d, to every coordinate of every bead, drawn from
-    ``numpy.random.default_rng(knot.seed or run.seed)``. Bond lengths are checked before the
-    perturbation, the steric distance and the knot type after it.
+    ``numpy.random.default_rng(knot.seed or run.seed)`` (``spec.seeds``). Bond lengths are
+    checked before the perturbation, the steric distance and the knot type after it.
     """
+    spec = TemplateSpec.of(cfg) if spec is None else spec
+    resources = RunResources.of(cfg) if resources is None else resources
     if getattr(cfg, "chains", None) is not None:
-        return build_chains(cfg, build_template, allow_open_chain=allow_open_chain,
-                            identify=identify)
+        return build_chains(cfg, build_template, spec, resources,
+                            allow_open_chain=allow_open_chain, identify=identify)
     if is_open(cfg):
-        return build_open(cfg, build_template)
+        return build_open(cfg, build_template, spec, resources)
     if is_link(cfg):
-        return build_link(cfg, identify=identify)
+        return build_link(cfg, spec, resources, identify=identify)
     kind = cfg["knot.kind"]
     bond = check_positive(cfg["model.bond_length"], "model.bond_length")
     sigma = check_positive(cfg["model.lj_sigma"], "model.lj_sigma")
     steric = LJ_CUTOFF_FACTOR * sigma
     notes: list[str] = []
     resolved: dict[str, Any] = {}
-    spec = None
+    shape = None
     if kind == "file":
         structure = read_structure(
             cfg["knot.path"], cfg["knot.frame"], cfg["knot.topology"], RUN_FILE_KEYS
@@ -398,24 +403,24 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         label = f"{Path(cfg['knot.path']).name} frame {cfg['knot.frame']}"
         expected, symmetry = None, ""
     else:
-        spec = _spec_from_config(cfg)
+        shape = _spec_from_config(cfg)
         beads = check_int(cfg["knot.beads"], "knot.beads", 4)
-        what = _label_of(spec)
+        what = _label_of(shape)
         try:
-            x, r0, chord = spec.build(beads)
+            x, r0, chord = shape.build(beads)
         except TooFewBeadsError as exc:
-            best = _search_minimal(spec, bond, steric, start=beads + 1)
+            best = _search_minimal(shape, bond, steric, start=beads + 1)
             if best is None:
                 raise
             detail = str(exc).split(": ", 1)[1].split("; use")[0]
             raise TemplateError(
                 f"knot.beads={beads} is too few for {what}: {detail}; use knot.beads >= {best}"
             ) from None
-        resolved.update(spec.resolved)
+        resolved.update(shape.resolved)
         resolved["knot.major_radius"] = r0
         resolved["knot.beads"] = beads
-        label, expected, symmetry = spec.label, spec.expected, spec.symmetry
-        if spec.explicit_radius:
+        label, expected, symmetry = shape.label, shape.expected, shape.symmetry
+        if shape.explicit_radius:
             notes.extend(_explicit_radius_notes(cfg, beads, chord))
         # an explicit radius may leave bonds off their length (they relax in the run): only
         # overlaps deeper than sigma, which the steric force may not resolve, are refused
@@ -424,16 +429,17 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
             bond,
             sigma,
             identify=False,
-            bond_tolerance=None if spec.explicit_radius else BOND_TOLERANCE,
-            min_distance=sigma if spec.explicit_radius else None,
+            bond_tolerance=None if shape.explicit_radius else BOND_TOLERANCE,
+            min_distance=sigma if shape.explicit_radius else None,
         )
         if pre.problems:
-            raise TemplateError(_steric_message(spec, cfg, beads, steric, pre.problems[0]))
+            raise TemplateError(_steric_message(shape, cfg, beads, steric, pre.problems[0]))
 
-    check_memory(cfg if resources is None else resources, x.shape[0])
+    check_memory(resources, x.shape[0])
     perturbation = float(cfg["knot.perturbation"])
+    mirror = bool(cfg["knot.mirror"])
     if perturbation > 0.0:
-        seed = cfg["knot.seed"] if cfg["knot.seed"] is not None else cfg["run.seed"]
+        seed = spec.seed
         rng = np.random.default_rng(seed)
         x = x + rng.normal(scale=perturbation, size=x.shape)
         x -= x.mean(axis=0)
@@ -443,7 +449,7 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
     is_file = kind == "file"
     # files and explicit radii start off the model's bond length: bonds and close pairs down
     # to sigma are allowed (they relax in the run), and noted
-    relaxed = is_file or spec.explicit_radius
+    relaxed = is_file or shape.explicit_radius
     later = identify == "later" and topoly_available()
     check = check_template(
         x,
@@ -455,7 +461,8 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         min_distance=sigma if relaxed else None,
     )
     if relaxed:
-        notes.extend(_relaxed_notes(check, cfg, is_file))
+        notes.extend(_relaxed_notes(check, cfg, is_file, spec.max_bond_length))
+    where = f"knot.path={cfg['knot.path']!r} frame {cfg['knot.frame']}" if is_file else ""
 
     def conclude(check: TemplateCheck) -> tuple[str | None, str, list[str]]:
         """Knot type, description and the check's notes; TemplateError on a problem."""
@@ -467,10 +474,7 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
                     "use a smaller perturbation or another knot.seed"
                 )
             if is_file:
-                raise TemplateError(
-                    f"knot.path={cfg['knot.path']!r} frame {cfg['knot.frame']}: {problem}; "
-                    "pick another knot.frame"
-                )
+                raise TemplateError(f"{where}: {problem}; pick another knot.frame")
             raise TemplateError(f"knot.kind={kind!r} {label}: {problem}; use more knot.beads")
         found = list(check.notes)
         if check.knot_type == "0_1" and kind == "braid":
@@ -488,7 +492,7 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         shown = knot_type if knot_type not in (None, UNKNOWN) else None
         shown = shown or _signed_type(expected, wr, sym) or f"writhe {wr:+.2f}"
         description = f"{label}, {shown}"
-        if cfg["knot.mirror"]:
+        if mirror:
             description += " (mirror image)"
         return knot_type, description, found
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from knotmm.dynamics.registry import REGISTRY, resolve
 from knotmm.errors import ConfigError
 
-__all__ = ["RunResources", "available_memory", "check_memory", "run_memory"]
+__all__ = ["RunResources", "available_memory", "check_memory"]
 
 
 def available_memory() -> int | None:
@@ -34,9 +34,9 @@ class RunResources:
     """What a run's memory depends on beyond the template, as plain values.
 
     The geometry code receives this, not the run file's ``[run]`` table: the run plan
-    (:func:`knotmm.plan.make_plan`) makes it from ``run.integrator``, ``run.peclet`` and
+    (:func:`knotmm.plan.prepare`) makes it from ``run.integrator``, ``run.peclet`` and
     ``run.noise`` once (:meth:`of`), and :func:`knotmm.shapes.builder.build_template`
-    checks the chain it builds against it (:meth:`check`) before the knot check.
+    checks the chain it builds against it (:func:`check_memory`) before the knot check.
 
     Attributes
     ----------
@@ -51,10 +51,8 @@ class RunResources:
 
     @classmethod
     def of(cls, cfg) -> RunResources:
-        """The resources of a run configuration (a :class:`RunResources` is returned as it
-        is): the one place this module reads ``run.*`` keys."""
-        if isinstance(cfg, RunResources):
-            return cfg
+        """The resources of a run configuration: with :meth:`knotmm.shapes.spec.TemplateSpec.of`,
+        one of the two places of ``shapes/`` that read ``run.*`` keys."""
         name, _ = resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
         brownian = REGISTRY[name].brownian and math.isfinite(float(cfg["run.peclet"]))
         return cls(brownian=bool(brownian), noise=str(cfg["run.noise"]))
@@ -95,11 +93,7 @@ class RunResources:
         )
 
 
-def run_memory(cfg, n_beads: int) -> tuple[int, str]:
-    """:meth:`RunResources.need` of a run configuration (or of a :class:`RunResources`)."""
-    return RunResources.of(cfg).need(n_beads)
-
-
-def check_memory(cfg, n_beads: int) -> None:
-    """:meth:`RunResources.check` of a run configuration (or of a :class:`RunResources`)."""
-    RunResources.of(cfg).check(n_beads)
+def check_memory(resources: RunResources, n_beads: int) -> None:
+    """Refuse, in one line naming ``run.noise`` and ``knot.beads``, a run of ``n_beads``
+    whose dense noise cannot fit in memory (:meth:`RunResources.check`)."""
+    resources.check(n_beads)

@@ -6,6 +6,9 @@ gcd(p, q) > 1, a closed braid whose permutation has several cycles, a LinkInfo n
 ``L4a1``; :func:`build_link`) or an open filament (:func:`is_open`: ``knot.closed = false``
 or a kind of :data:`knotmm.shapes.open_chains.OPEN_KINDS`; :func:`build_open`). Each returns
 a :class:`knotmm.shapes.template.Template` whose ``layout`` describes its chains. Units: d.
+What they take from the run beyond ``[knot]`` and ``[model]`` comes typed: the perturbation
+seeds and the longest bond in a :class:`~knotmm.shapes.spec.TemplateSpec`, the memory budget
+in a :class:`~knotmm.shapes.resources.RunResources`.
 """
 
 from __future__ import annotations
@@ -23,7 +26,8 @@ from knotmm.shapes.checks import BOND_TOLERANCE, check_template
 from knotmm.shapes.curves import braid_cycles
 from knotmm.shapes.links import COMMON_LINKS, LINKINFO_NAME, braid_link, named_link, torus_link
 from knotmm.shapes.open_chains import OPEN_KINDS, arc, closest_nonbonded_open, helix, straight
-from knotmm.shapes.resources import check_memory
+from knotmm.shapes.resources import RunResources, check_memory
+from knotmm.shapes.spec import TemplateSpec
 from knotmm.shapes.template import Template
 from knotmm.shapes.validation import check_int, check_positive, parse_word_text
 from knotmm.units import LJ_CUTOFF_FACTOR
@@ -61,7 +65,8 @@ def is_link(cfg) -> bool:
 
 
 # -- open filaments ---------------------------------------------------------------------------
-def build_open(cfg, build_template: Callable) -> Template:
+def build_open(cfg, build_template: Callable, spec: TemplateSpec,
+               resources: RunResources) -> Template:
     """An open filament from ``[knot]``: a straight rod, an arc, a helix, or a closed
     template (a knot, a file) cut open between its last bead and its first.
 
@@ -105,16 +110,17 @@ def build_open(cfg, build_template: Callable) -> Template:
             description += " (mirror image)"
     else:  # the closed shape unperturbed: the perturbation is applied below, once
         closed = build_template(cfg.replace({"knot.closed": True, "knot.perturbation": 0.0}),
-                                allow_open_chain=True, identify="skip")
+                                allow_open_chain=True, identify="skip",
+                                spec=spec.unperturbed(), resources=resources)
         x = closed.positions
         resolved.update({k: v for k, v in closed.resolved.items() if k != "knot.seed"})
         description = f"{closed.description.split(', writhe')[0]}, cut open"
         notes.extend(n for n in closed.notes if "open chain" not in n)
     lengths = closed.layout.lengths if closed is not None else (x.shape[0],)
-    check_memory(cfg, x.shape[0])
+    check_memory(resources, x.shape[0])
     perturbation = float(cfg["knot.perturbation"])
     if perturbation > 0.0:
-        seed = cfg["knot.seed"] if cfg["knot.seed"] is not None else cfg["run.seed"]
+        seed = spec.seed
         x = x + np.random.default_rng(seed).normal(scale=perturbation, size=x.shape)
         x -= x.mean(axis=0)
         resolved["knot.seed"] = int(seed)
@@ -123,7 +129,7 @@ def build_open(cfg, build_template: Callable) -> Template:
     limit = steric if kind in OPEN_KINDS and perturbation == 0.0 else cfg["model.lj_sigma"]
     for k, chain in enumerate(chains):
         _check_open(cfg, chain, bond, limit, perturbation,
-                    "" if len(chains) == 1 else f"component {k}: ")
+                    "" if len(chains) == 1 else f"component {k}: ", spec.max_bond_length)
     notes.append("open chain: its knot type is not defined (not checked)")
     if len(chains) == 1:
         return Template(
@@ -139,15 +145,15 @@ def build_open(cfg, build_template: Callable) -> Template:
 
 
 def _check_open(cfg, x: np.ndarray, bond: float, limit: float, perturbation: float,
-                what: str) -> None:
-    """Refuse an open chain with a bond past run.max_bond_length, beads closer than
-    ``limit`` (in d), or (an open kind, unperturbed) bonds off the bond length."""
+                what: str, max_bond: float) -> None:
+    """Refuse an open chain with a bond past ``max_bond`` (``run.max_bond_length``), beads
+    closer than ``limit`` (in d), or (an open kind, unperturbed) bonds off the bond length."""
     kind = cfg["knot.kind"]
     bonds = np.linalg.norm(np.diff(x, axis=0), axis=1)
-    if bonds.max() > cfg["run.max_bond_length"]:
+    if bonds.max() > max_bond:
         raise TemplateError(
             f"knot: {what}the open chain has a bond of {bonds.max():.3f} d, longer than "
-            f"run.max_bond_length={cfg['run.max_bond_length']:g}"
+            f"run.max_bond_length={max_bond:g}"
             + ("; use a smaller knot.perturbation" if perturbation > 0.0 else "")
         )
     dmin, pair = closest_nonbonded_open(x)
@@ -187,7 +193,8 @@ def _cut_link(cfg, closed: Template, chains: list[np.ndarray], limit: float,
 
 
 # -- links ------------------------------------------------------------------------------------
-def build_link(cfg, identify: str = "now") -> Template:
+def build_link(cfg, spec: TemplateSpec, resources: RunResources,
+               identify: str = "now") -> Template:
     """A link from ``[knot]``: one closed chain per component, their linking numbers.
 
     ``knot.beads`` is the whole link's bead count, shared among the components in
@@ -226,7 +233,7 @@ def build_link(cfg, identify: str = "now") -> Template:
         message = str(exc)
         raise TemplateError(message if message.startswith("knot.") else f"knot: {message}") \
             from None
-    check_memory(cfg, shape.n_beads)
+    check_memory(resources, shape.n_beads)
     components = [np.asarray(x, dtype=np.float64) for x in shape.components]
     notes: list[str] = []
     resolved: dict[str, Any] = {}
@@ -234,10 +241,11 @@ def build_link(cfg, identify: str = "now") -> Template:
         notes.extend(_link_radius_notes(cfg, shape.bond_lengths, beads))
     perturbation = float(cfg["knot.perturbation"])
     if perturbation > 0.0:
-        components, seed = _perturbed(cfg, components)
+        components, seed = _perturbed(cfg, components, spec.seed)
         resolved["knot.seed"] = seed
         notes.append(f"perturbed by {perturbation:g} d (std per coordinate), seed {seed}")
-    _check_bond_range(cfg, components, "knot.major_radius" if explicit else "knot.beads")
+    _check_bond_range(cfg, components, "knot.major_radius" if explicit else "knot.beads",
+                      spec.max_bond_length)
     sigma = cfg["model.lj_sigma"]
     steric = sigma if explicit else LJ_CUTOFF_FACTOR * sigma
     parts = []
@@ -270,10 +278,9 @@ def build_link(cfg, identify: str = "now") -> Template:
     return system
 
 
-def _perturbed(cfg, components: list[np.ndarray]) -> tuple[list[np.ndarray], int]:
+def _perturbed(cfg, components: list[np.ndarray], seed: int) -> tuple[list[np.ndarray], int]:
     """The components displaced as a single knot's beads are (one normal draw over all the
-    beads, in bead order; the link's centre kept), and the seed used."""
-    seed = cfg["knot.seed"] if cfg["knot.seed"] is not None else cfg["run.seed"]
+    beads, in bead order, from ``seed``; the link's centre kept), and the seed used."""
     x = np.concatenate(components)
     with np.errstate(all="ignore"):
         x = x + np.random.default_rng(seed).normal(scale=float(cfg["knot.perturbation"]),
@@ -316,18 +323,19 @@ def _link_radius_notes(cfg, chords: tuple[float, ...], beads: int) -> list[str]:
     ]
 
 
-def _check_bond_range(cfg, components: list[np.ndarray], key: str) -> None:
-    """Refuse components with a bond past run.max_bond_length (the run's first step would)."""
+def _check_bond_range(cfg, components: list[np.ndarray], key: str, max_bond: float) -> None:
+    """Refuse components with a bond past ``max_bond`` (``run.max_bond_length``: the run's
+    first step would)."""
     with np.errstate(over="ignore"):
         longest = max(float(ChainLayout.ring(len(x)).bond_lengths(x).max())
                       for x in components)
-    if longest > cfg["run.max_bond_length"]:
+    if longest > max_bond:
         if float(cfg["knot.perturbation"]) > 0.0:
             key = "knot.perturbation"
         value = cfg[key]
         raise TemplateError(
             f"{key}={value:g} is too large: the link has a bond of {longest:.3g} d, longer than "
-            f"run.max_bond_length={cfg['run.max_bond_length']:g}; use a smaller "
+            f"run.max_bond_length={max_bond:g}; use a smaller "
             f"{key}" + (" or leave it unset" if key == "knot.major_radius" else "")
         )
 
@@ -342,24 +350,24 @@ def _close_components(components: list[np.ndarray], limit: float):
 
 
 # -- several chains ---------------------------------------------------------------------------
-def build_chains(cfg, build_template: Callable, *, allow_open_chain: bool = False,
-                 identify: str = "now") -> Template:
+def build_chains(cfg, build_template: Callable, spec: TemplateSpec, resources: RunResources,
+                 *, allow_open_chain: bool = False, identify: str = "now") -> Template:
     """The system of a run file's ``[[chains]]``: each entry built as a one-chain run file
     would be (:meth:`knotmm.config.RunConfig.chain_config`), turned by its ``rotation``,
     moved to its ``offset``, and checked against the others for overlaps.
 
     A chain's perturbation seed defaults to ``run.seed + index``, so identical chains are
-    perturbed differently. The template's ``resolved`` is the ``[[chains]]`` array with each
-    entry's resolved keys (``beads``, ``major_radius``, ``seed``).
+    perturbed differently (``spec.seeds``: :meth:`knotmm.shapes.spec.TemplateSpec.of`). The
+    template's ``resolved`` is the ``[[chains]]`` array with each entry's resolved keys
+    (``beads``, ``major_radius``, ``seed``).
     """
     entries = cfg.chains
     parts, names = [], []
     for c, entry in enumerate(entries):
         sub = cfg.chain_config(c)
-        if sub["knot.perturbation"] > 0.0 and sub["knot.seed"] is None:
-            sub = sub.replace({"knot.seed": int(cfg["run.seed"]) + c})
         try:
-            part = build_template(sub, allow_open_chain=allow_open_chain, identify=identify)
+            part = build_template(sub, allow_open_chain=allow_open_chain, identify=identify,
+                                  spec=spec.part(c), resources=resources)
         except TemplateError as exc:
             raise TemplateError(str(exc).replace("knot.", f"chains[{c}].")) from None
         part.positions = place(part.positions, entry["rotation"], entry["offset"])
@@ -370,7 +378,7 @@ def build_chains(cfg, build_template: Callable, *, allow_open_chain: bool = Fals
         parts.append(part)
         names.append(f"chains[{c}]")
     steric = LJ_CUTOFF_FACTOR * cfg["model.lj_sigma"]
-    check_memory(cfg, sum(p.n_beads for p in parts))
+    check_memory(resources, sum(p.n_beads for p in parts))
     facts = {}
     links = [p.chain_facts for p in parts if p.chain_facts]
     if links:

@@ -34,13 +34,12 @@ def run40(tmp_path_factory):
 @pytest.fixture(scope="session")
 def orbit40(run40):
     """(FlowMap, Orbit, OrbitStart) of run40, converged to 1e-9 d."""
-    from knotmm.model.parameters import ChainModel
     from knotmm.orbit.flow import make_flow
     from knotmm.orbit.shooting import solve_orbit
     from knotmm.orbit.start import refine_guess, start_from_run
 
     start = start_from_run(run40)
-    flow = make_flow(start.positions, ChainModel.from_config(start.config))
+    flow = make_flow(start.positions, start.model)
     period, rotation, _ = refine_guess(flow, start.positions, start.tau_swirl)
     orbit = solve_orbit(flow, start.positions, period, rotation, tolerance=1e-9)
     assert orbit.converged, orbit.message

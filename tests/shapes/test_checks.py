@@ -74,8 +74,10 @@ def test_dense_noise_that_cannot_fit_is_refused_with_the_estimate(monkeypatch):
 
 
 def test_only_the_dense_noise_counts():
-    assert resources.run_memory(_brownian(6000, "cholesky"), 6000)[0] == 2 * 18000**2 * 8
-    assert resources.run_memory(_brownian(6000, "lanczos"), 6000)[0] == 0
-    assert resources.run_memory(_brownian(6000, "auto"), 6000)[0] == 0  # lanczos above 300
-    deterministic = RunConfig.from_dict({"knot": {"beads": 6000}})
-    assert resources.run_memory(deterministic, 6000)[0] == 0
+    def need(cfg):
+        return resources.RunResources.of(cfg).need(6000)[0]
+
+    assert need(_brownian(6000, "cholesky")) == 2 * 18000**2 * 8
+    assert need(_brownian(6000, "lanczos")) == 0
+    assert need(_brownian(6000, "auto")) == 0  # lanczos above 300
+    assert need(RunConfig.from_dict({"knot": {"beads": 6000}})) == 0

@@ -11,6 +11,7 @@ from __future__ import annotations
 import collections
 import math
 
+import numpy as np
 import pytest
 
 import knotmm.dynamics.registry as registry
@@ -137,6 +138,9 @@ def test_the_plan_holds_every_decision():
     assert plan.resources == RunResources(brownian=True, noise="auto")
     assert plan.n_beads == 40 and plan.model.bending_stiffness == 2.0
     assert plan.template.kind == "torus" and plan.template.seeds == (None,)
+    assert plan.template.max_bond_length == 3.0
+    assert plan.duration == 0.5 and plan.checks.interval == 0.0
+    assert plan.record == plan.config.to_dict()
     with pytest.raises(AttributeError):
         plan.n_beads = 41  # frozen
 
@@ -187,3 +191,60 @@ def test_the_geometry_takes_the_memory_budget_as_values(monkeypatch):
         build_template(cfg, identify="skip", resources=RunResources(True, "cholesky"))
     assert RunResources.of(cfg) == RunResources(False, "auto")
     assert RunResources(True, "auto").noise_method(400) == "lanczos"
+
+
+@pytest.fixture
+def contexts(monkeypatch):
+    """``openmm.Context``s made while the test runs (the run's and any probe's)."""
+    import openmm
+
+    made = []
+    init = openmm.Context.__init__
+
+    def counted(self, *args, **kwargs):
+        made.append(1)
+        init(self, *args, **kwargs)
+
+    monkeypatch.setattr(openmm.Context, "__init__", counted)
+    return made
+
+
+@pytest.mark.parametrize(("engine", "bending", "integrator", "made"), [
+    ("python", 5.0, "rk23", 1), ("python", 50.0, "rkc2", 1),  # rkc2 was 2: a second Simulation
+    ("plugin", 5.0, "rk23", 2), ("plugin", 50.0, "rkc2", 3),
+])
+def test_contexts_made_per_run(tmp_path, contexts, engine, bending, integrator, made):
+    """``run.integrator = "auto"`` at Pe = inf: the stiffness is probed once on the run's
+    Simulation. The Python engine takes rkc2 in place, on the same Context. The plugin's
+    probe steps its own rkc2 in a throwaway Context (the plugin has no estimate without a
+    step), and its integrator lives in the Context, so taking rkc2 builds the Simulation
+    again."""
+    import knotmm.plugin
+    from knotmm.config import load_run_file
+    from knotmm.workflow import run
+
+    if engine == "plugin" and not knotmm.plugin.available():
+        pytest.skip(f"plugin not built: {knotmm.plugin.load_error()}")
+    run(_cfg(bending, engine=engine), tmp_path / "r", progress=False)
+    assert load_run_file(tmp_path / "r" / "run.toml")["run.integrator"] == integrator
+    assert len(contexts) == made
+    contexts.clear()
+    run(_cfg(bending, engine=engine, integrator=integrator), tmp_path / "named", progress=False)
+    assert len(contexts) == 1  # a named integrator: one Context
+
+
+def test_an_integrator_taken_in_place_steps_as_a_new_simulation(tmp_path):
+    """``auto`` taking rkc2 on the Python engine's Simulation in place gives the run a named
+    rkc2 (same step and tolerance) gives, frame for frame."""
+    from knotmm.config import load_run_file
+    from knotmm.io.dcd import read_dcd
+    from knotmm.workflow import run
+
+    run(_cfg(50.0, engine="python"), tmp_path / "auto", progress=False)
+    rec = load_run_file(tmp_path / "auto" / "run.toml")
+    assert rec["run.integrator"] == "rkc2"
+    run(_cfg(50.0, engine="python", integrator="rkc2", timestep=rec["run.timestep"],
+             tolerance=rec["run.tolerance"]), tmp_path / "named", progress=False)
+    auto, named = (read_dcd(tmp_path / d / "trajectory.dcd")[0] for d in ("auto", "named"))
+    assert auto.shape[0] > 1
+    np.testing.assert_array_equal(auto, named)
