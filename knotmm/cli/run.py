@@ -31,6 +31,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--resume", metavar="DIR",
                    help="continue a stopped or killed run from its last checkpoint (a "
                         "finished one with --duration T)")
+    p.add_argument("--from", dest="start_from", metavar="RUN",
+                   help="a new run (time from 0) started from a frame of RUN: a run directory "
+                        "(its trajectory, its chains, and, without RUN.toml, its settings; "
+                        "change them with --set), or a PDB or DCD file; needs --out")
+    p.add_argument("--frame", type=int, metavar="K",
+                   help="with --from: the frame to start from (default -1, the last; 0 the "
+                        "first)")
     p.add_argument(
         "--set",
         action="append",
@@ -49,7 +56,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def config_from_args(args) -> RunConfig:
     """The run configuration: run file (or defaults) with the command-line overrides."""
-    cfg = load_run_file(args.run_file) if args.run_file else RunConfig.from_dict({})
+    if getattr(args, "start_from", None) is not None:
+        cfg = start_from_config(args)
+    else:
+        if getattr(args, "frame", None) is not None:
+            raise ConfigError(f"--frame {args.frame} applies only with --from RUN; add --from "
+                              "or leave --frame out")
+        cfg = load_run_file(args.run_file) if args.run_file else RunConfig.from_dict({})
     changes = dict(parse_override(text) for text in args.set)
     if args.duration is not None:
         changes["run.duration"] = args.duration
@@ -71,6 +84,69 @@ def config_from_args(args) -> RunConfig:
             data["knot"].pop("major_radius", None)
             cfg = RunConfig.from_dict(data)
         cfg = cfg.replace(changes)
+    return cfg
+
+
+def start_from_config(args) -> RunConfig:
+    """The run configuration of ``knotmm run --from RUN``: a new run from a frame of RUN.
+
+    The settings are those of ``RUN.toml`` when given, else of RUN's ``run.toml`` when RUN
+    is a run directory (its model, stepping and output; its ``output.directory`` dropped),
+    else the defaults; the start is ``[knot] kind = "file"`` with ``path = RUN`` and
+    ``frame`` (``--frame``, default -1): the chains RUN's files hold
+    (:mod:`knotmm.shapes.file_start`). ``--set`` and the other options apply after.
+
+    Raises
+    ------
+    ConfigError
+        Without ``--out`` (or a run file's ``output.directory``), with ``--beads`` (the file
+        fixes the beads), or when the new run would be written into RUN itself.
+    """
+    from pathlib import Path  # noqa: PLC0415
+
+    from knotmm.io.rundir import RUN_FILE, TOPOLOGY_FILE, TRAJECTORY_FILE  # noqa: PLC0415
+
+    source = Path(args.start_from)
+    if args.beads is not None:
+        raise ConfigError(f"--beads {args.beads}: --from {args.start_from} starts from a frame "
+                          "of that run, which fixes the beads; leave --beads out")
+    if not source.exists():
+        raise ConfigError(f"--from {args.start_from!r}: no such run directory or file")
+    if source.is_dir():
+        run_dir = source
+    elif source.name in (TRAJECTORY_FILE, TOPOLOGY_FILE) and (source.parent / RUN_FILE).is_file():
+        run_dir = source.parent  # a run's own file: that run's settings
+    else:
+        run_dir = None
+    if source.is_dir() and not (source / TRAJECTORY_FILE).is_file():
+        raise ConfigError(
+            f"--from {args.start_from!r} is a directory without {TRAJECTORY_FILE}: give a run "
+            "directory (for a replica set, one replica_K), a PDB or a DCD file"
+        )
+    out_given = args.out is not None or any(
+        text.partition("=")[0].strip() == "output.directory" for text in args.set)
+    if args.run_file:
+        data = load_run_file(args.run_file).to_dict()
+    elif run_dir is not None and (run_dir / RUN_FILE).is_file():
+        data = load_run_file(run_dir / RUN_FILE).to_dict()
+        data.get("output", {}).pop("directory", None)  # never the source's own directory
+        if not out_given:
+            raise ConfigError(
+                f"--from {args.start_from}: give --out DIR for the new run (its settings are "
+                f"{args.start_from}'s, whose output.directory is that run itself)"
+            )
+    else:
+        data = {}
+    if not out_given and "directory" not in data.get("output", {}):
+        raise ConfigError(f"--from {args.start_from}: give --out DIR for the new run")
+    data.pop("chains", None)
+    data["knot"] = {"kind": "file", "path": str(source.resolve()),
+                    "frame": -1 if args.frame is None else args.frame}
+    cfg = RunConfig.from_dict(data)
+    target = Path(args.out if args.out is not None else cfg["output.directory"])
+    if run_dir is not None and target.exists() and target.resolve() == run_dir.resolve():
+        raise ConfigError(f"--out {str(target)!r} is where --from {args.start_from} lies; give "
+                          "another directory for the new run")
     return cfg
 
 
@@ -149,7 +225,9 @@ def execute(args) -> int:
     if args.resume:
         given = [o for o, v in (("RUN.toml", args.run_file), ("--out", args.out),
                                 ("--beads", args.beads), ("--set", args.set),
-                                ("--overwrite", args.overwrite)) if v]
+                                ("--overwrite", args.overwrite),
+                                ("--from", args.start_from),
+                                ("--frame", args.frame is not None)) if v]
         if given:
             raise ConfigError(
                 f"--resume takes no other run options but --duration (got "

@@ -30,8 +30,8 @@ _KNOT_HELP = (
     "the knot: a name from the tables (3_1, 5_2, 11a_367) or a common name (trefoil, "
     "figure-eight, cinquefoil, three-twist, stevedore, ...; --list lists them), a link (hopf, "
     "whitehead, borromean, L4a1{1}), torus:P,Q "
-    "(e.g. torus:2,3), braid:W (e.g. braid:1,-2,1,-2), or file:PATH (a PDB, or a DCD with "
-    "its topology)"
+    "(e.g. torus:2,3), braid:W (e.g. braid:1,-2,1,-2), or file:PATH (a PDB, a DCD with "
+    "its topology, or a run directory: the chains its bonds make; --frame)"
 )
 
 
@@ -258,9 +258,9 @@ def execute(args) -> int:
 
     from knotmm.shapes.builder import build_template  # noqa: PLC0415
 
-    tpl = build_template(cfg, allow_open_chain=True)  # --out writes it closed
+    tpl = build_template(cfg)  # a file: its chains as its bonds say (--set knot.closed=...)
     if tpl.parts or not tpl.layout.is_single_ring:
-        rows = _system_rows(tpl, cfg)
+        rows = _system_rows(tpl, cfg, args)
     else:
         rows = _knot_rows(tpl, cfg, args)
     if out_path is not None:
@@ -290,7 +290,7 @@ def _bond_row(check, cfg) -> tuple[str, str]:
     )
 
 
-def _system_rows(tpl, cfg) -> list[tuple[str, str]]:
+def _system_rows(tpl, cfg, args) -> list[tuple[str, str]]:
     """The report of a link, an open filament or several chains: one row per chain, the
     linking numbers, the closest approach of two chains."""
     import numpy as np  # noqa: PLC0415
@@ -321,7 +321,8 @@ def _system_rows(tpl, cfg) -> list[tuple[str, str]]:
                    for i, a in enumerate(slices) for j, b in enumerate(slices) if i < j)
         rows.append(("closest", f"chains {layout.ids[best[1]]} and {layout.ids[best[2]]}, "
                                 f"{best[0]:.4f} d apart"))
-    rows.extend(("note", note) for note in tpl.notes if not note.startswith("knot type not"))
+    rows.extend(("note", note) for note in tpl.notes if not note.startswith("knot type not")
+                and not (note.startswith("knot.beads=") and args.beads is None))
     return rows
 
 

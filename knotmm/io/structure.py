@@ -1,11 +1,14 @@
 """One frame of a PDB or DCD file as bead positions: the start of a ``kind = "file"`` run.
 
 :func:`read_structure` reads frame ``frame`` of a PDB file (any MODEL) or of a DCD file with
-its topology PDB, converts Angstrom to d (1 d = 10 A, ``docs/model.md``) and says whether the
-file's topology closes the ring (a bond from the last bead to the first). A file whose bonds
-(CONECT records) make several chains (a run of a link or of ``[[chains]]``) is refused:
-its chains are never joined into one. A run directory
-stands for its ``trajectory.dcd``. DCD frame counts and truncation come from
+its topology PDB, converts Angstrom to d (1 d = 10 A, ``docs/model.md``) and reads the
+file's chains: from the bonds of its topology (CONECT records,
+:meth:`knotmm.model.layout.ChainLayout.from_bonds`: a chain is a run of consecutive beads,
+closed when its last bead is bonded to its first), so a knotmm ``topology.pdb`` of one ring,
+several chains, open chains or a link reads back as written; chains are never joined into
+one. A run directory stands for its ``trajectory.dcd`` and ``topology.pdb``, and its
+``run.toml`` (its ``[knotmm.layout]``, checked against the bonds, and the frame interval,
+which gives the frame's time). DCD frame counts and truncation come from
 :func:`knotmm.io.dcd.dcd_layout`.
 
 Errors name the argument as the caller knows it: ``names`` maps ``"path"``, ``"frame"`` and
@@ -23,13 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from knotmm.errors import TemplateError, TrajectoryFileError
+from knotmm.errors import KnotmmError, TemplateError, TrajectoryFileError
 from knotmm.io.dcd import c_path, dcd_layout, quiet_c_stdout
-from knotmm.io.rundir import TOPOLOGY_FILE, TRAJECTORY_FILE
+from knotmm.io.replica_set import REPLICA_SET_FILE
+from knotmm.io.rundir import RUN_FILE, TOPOLOGY_FILE, TRAJECTORY_FILE
 from knotmm.model.layout import ChainLayout
 from knotmm.units import angstrom_to_d, mdtraj_to_angstrom
 
-__all__ = ["Structure", "read_structure", "ring_closed", "several_chains"]
+__all__ = ["Structure", "read_structure", "ring_closed"]
 
 logger = logging.getLogger(__name__)
 
@@ -38,7 +42,7 @@ _PLAIN = {"path": "path", "frame": "frame", "topology": "topology"}
 
 @dataclass(frozen=True)
 class Structure:
-    """One frame read from a file.
+    """One frame read from a file, and the chains its topology holds.
 
     Attributes
     ----------
@@ -52,7 +56,22 @@ class Structure:
         Complete frames in the file.
     ring_closed : bool or None
         ``True``: the topology bonds the last bead to the first; ``False``: it lists bonds
-        but not that one (an open chain); ``None``: it lists no bonds at all.
+        but not that one; ``None``: it lists no bonds at all.
+    layout : ChainLayout or None
+        The chains by the topology's bonds (CONECT records; a run's ``[knotmm.layout]``
+        agrees with them): each a run of consecutive beads, closed or open. ``None`` when
+        the topology lists no bonds, or bonds that are not those of bead chains in atom
+        order (then ``ring_closed`` and ``pdb_chains`` are all that is known).
+    pdb_chains : tuple of int
+        The bead count of each chain of the PDB topology (its chain records), in order.
+    topology : Path or None
+        The PDB read for a DCD's topology (``None`` for a PDB file).
+    run_directory : Path or None
+        The knotmm run directory the file belongs to (a ``run.toml`` beside its
+        ``trajectory.dcd`` or ``topology.pdb``), else ``None``.
+    frame_time : float or None
+        The frame's time in that run, in tau_d (frame ``k`` at ``k`` frame intervals, the
+        run's ``frame_interval``); ``None`` when not known.
     """
 
     positions: np.ndarray
@@ -60,17 +79,23 @@ class Structure:
     frame: int
     n_frames: int
     ring_closed: bool | None
+    layout: ChainLayout | None = None
+    pdb_chains: tuple[int, ...] = ()
+    topology: Path | None = None
+    run_directory: Path | None = None
+    frame_time: float | None = None
 
 
 def read_structure(
     path, frame: int = 0, topology=None, names: Mapping[str, str] | None = None
 ) -> Structure:
-    """Read one frame of a PDB or DCD file.
+    """Read one frame of a PDB or DCD file, and its chains.
 
     Parameters
     ----------
     path : str or Path
-        A PDB file, a DCD file (lengths in Angstrom) or a run directory.
+        A PDB file, a DCD file (lengths in Angstrom) or a run directory (its
+        ``trajectory.dcd`` with its ``topology.pdb``).
     frame : int, optional
         Frame index; negative counts from the end (-1: the last complete frame).
     topology : str or Path, optional
@@ -86,11 +111,13 @@ def read_structure(
     Raises
     ------
     TrajectoryFileError
-        For a missing, empty, truncated or unreadable file, or a DCD whose atom count does
-        not match its topology.
+        For a missing, empty, truncated or unreadable file, a DCD whose atom count does
+        not match its topology, or a run whose ``run.toml`` records other chains
+        (``[knotmm.layout]``) than its ``topology.pdb`` holds.
     TemplateError
         For a frame that is not an integer or is out of range, fewer than 4 beads, or a
-        topology whose bonds make several chains (:func:`several_chains`).
+        topology of several PDB chains whose bonds are not those of bead chains (it is
+        never read as one chain).
     """
     import mdtraj  # noqa: PLC0415 - heavy import kept out of module import
 
@@ -103,6 +130,11 @@ def read_structure(
     if path.is_dir():
         if (path / TRAJECTORY_FILE).is_file():  # a run directory
             path = path / TRAJECTORY_FILE
+        elif (path / REPLICA_SET_FILE).is_file():
+            raise TrajectoryFileError(
+                f"{names['path']}={str(path)!r} is a set of replicas; give one of them, e.g. "
+                f"{str(path / 'replica_0')!r}"
+            )
         else:
             raise TrajectoryFileError(
                 f"{names['path']}={str(path)!r} is a directory without {TRAJECTORY_FILE}; give "
@@ -111,10 +143,12 @@ def read_structure(
     if path.stat().st_size == 0:
         raise TrajectoryFileError(f"{names['path']}={str(path)!r} is empty")
     suffix = path.suffix.lower()
+    top_path = None
     if suffix == ".pdb":
         xyz_angstrom, top, n_frames, index = _read_pdb(mdtraj, path, frame, names)
     elif suffix == ".dcd":
-        xyz_angstrom, top, n_frames, index = _read_dcd(mdtraj, path, frame, topology, names)
+        top_path = _find_topology(path, topology, names)
+        xyz_angstrom, top, n_frames, index = _read_dcd(mdtraj, path, frame, top_path, names)
     else:
         raise TrajectoryFileError(f"{names['path']}={str(path)!r}: expected a .pdb or .dcd file")
     x = angstrom_to_d(np.asarray(xyz_angstrom, dtype=np.float64))
@@ -126,29 +160,72 @@ def read_structure(
         raise TemplateError(
             f"{names['path']}={str(path)!r} holds {x.shape[0]} beads: a knot needs at least 4"
         )
-    several = several_chains(top)
-    if several is not None:
-        what = (several.describe() if several.n_chains <= 4 else
-                f"{several.n_beads} beads in {several.n_chains} chains")
+    pdb_chains = tuple(int(c.n_atoms) for c in top.chains if c.n_atoms)
+    layout = bond_layout(top)
+    if layout is None and top.n_bonds and len(pdb_chains) > 1:
         raise TemplateError(
-            f"{names['path']}={str(path)!r} holds {several.n_chains} chains by the bonds of its "
-            f"topology ({what}): a file template is one chain, and knotmm does not join "
-            "chains; give a PDB or DCD file of one chain (e.g. a run of one ring)"
+            f"{names['path']}={str(path)!r} holds {len(pdb_chains)} PDB chains whose bonds "
+            "(CONECT records) are not those of bead chains in atom order (bead i bonded to "
+            "i + 1, a ring's last bead to its first): knotmm does not join them into one "
+            "chain; give a file of bead chains, such as a knotmm topology.pdb"
         )
-    return Structure(x, path, index, n_frames, ring_closed(top))
+    run_dir = _run_directory(path, top_path)
+    frame_time = None
+    if run_dir is not None:
+        layout, frame_time = _run_record(run_dir, x.shape[0], layout, index, names)
+    return Structure(x, path, index, n_frames, ring_closed(top), layout, pdb_chains,
+                     top_path, run_dir, frame_time)
 
 
-def several_chains(top) -> ChainLayout | None:
-    """The chains of an mdtraj Topology whose bonds make more than one chain, else ``None``.
+def bond_layout(top) -> ChainLayout | None:
+    """The chains of an mdtraj Topology by its bonds (CONECT records), or ``None``.
 
-    The chains are read from the bonds (CONECT records), never from the PDB chain
-    identifiers (they repeat past 62 chains):
-    :meth:`knotmm.model.layout.ChainLayout.from_bonds`. ``None`` also when the bonds are
-    absent or are not those of bead chains in atom order.
+    Read from the bonds, never from the PDB chain identifiers (they repeat past 62 chains):
+    :meth:`knotmm.model.layout.ChainLayout.from_bonds`. ``None`` when the bonds are absent
+    or are not those of bead chains in atom order.
     """
     bonds = [(a.index, b.index) for a, b in top.bonds]
-    layout = ChainLayout.from_bonds(top.n_atoms, bonds) if bonds else None
-    return layout if layout is not None and layout.n_chains > 1 else None
+    return ChainLayout.from_bonds(top.n_atoms, bonds) if bonds else None
+
+
+def _run_directory(path: Path, top_path: Path | None) -> Path | None:
+    """The knotmm run directory ``path`` belongs to: its ``trajectory.dcd`` (read with the
+    run's ``topology.pdb``) or its ``topology.pdb``, with a ``run.toml`` beside them."""
+    folder = path.parent
+    if not (folder / RUN_FILE).is_file():
+        return None
+    if path.name == TOPOLOGY_FILE or (
+            path.name == TRAJECTORY_FILE and top_path is not None
+            and top_path.resolve() == (folder / TOPOLOGY_FILE).resolve()):
+        return folder
+    return None
+
+
+def _run_record(run_dir: Path, n_beads: int, layout: ChainLayout | None, index: int,
+                names) -> tuple[ChainLayout | None, float | None]:
+    """The chains and the frame's time as the run's ``run.toml`` records them.
+
+    Its ``[knotmm.layout]``, when present, must agree with the bonds of ``topology.pdb``
+    (:meth:`ChainLayout.from_record`); a ``run.toml`` that cannot be read is passed over
+    with a warning (the trajectory and its topology are what is read)."""
+    from knotmm.config import read_toml  # noqa: PLC0415 - as rundir.read_facts
+
+    try:
+        data = read_toml(run_dir / RUN_FILE, "run.toml")
+    except KnotmmError as exc:
+        logger.warning("%s: %s; its record of the chains and times is not used", run_dir, exc)
+        return layout, None
+    facts = data.get("knotmm") if isinstance(data.get("knotmm"), Mapping) else {}
+    record = facts.get("layout")
+    if record is not None:
+        where = f"{names['path']}: {str(run_dir / RUN_FILE)!r} [knotmm.layout]"
+        layout = ChainLayout.from_record(record, n_beads, expected=layout, where=where)
+    output = data.get("output") if isinstance(data.get("output"), Mapping) else {}
+    interval = facts.get("frame_interval", output.get("frame_interval"))
+    if isinstance(interval, bool) or not isinstance(interval, (int, float)) or not (
+            0.0 < interval < float("inf")):
+        return layout, None
+    return layout, float(index) * float(interval)
 
 
 def ring_closed(top) -> bool | None:
@@ -191,8 +268,7 @@ def _read_pdb(mdtraj, path: Path, frame, names):
     return mdtraj_to_angstrom(traj.xyz[index]), traj.topology, traj.n_frames, index
 
 
-def _read_dcd(mdtraj, path: Path, frame, topology, names):
-    top_path = _find_topology(path, topology, names)
+def _read_dcd(mdtraj, path: Path, frame, top_path: Path, names):
     try:
         top = mdtraj.load_pdb(os.fspath(top_path), standard_names=False).topology
     except Exception as exc:

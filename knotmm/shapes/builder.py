@@ -22,7 +22,6 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -43,11 +42,19 @@ from knotmm.shapes.checks import (
     submit_knot_check,
 )
 from knotmm.shapes.curves import braid_curve, circle_curve, torus_curve
+from knotmm.shapes.file_start import build_file, file_chains, file_source, source_note
 from knotmm.shapes.geometry import TooFewBeadsError, mirror_image, place_on_curve
 from knotmm.shapes.knotinfo import TORUS_NAMES, named_knot_word, resolve_name, symmetry_type
 from knotmm.shapes.resources import RunResources, check_memory
 from knotmm.shapes.spec import TemplateSpec
-from knotmm.shapes.system_builders import build_chains, build_link, build_open, is_link, is_open
+from knotmm.shapes.system_builders import (
+    build_chains,
+    build_link,
+    build_open,
+    is_link,
+    is_open,
+    perturb,
+)
 from knotmm.shapes.template import PendingKnotCheck, Template
 from knotmm.shapes.validation import (
     RUN_FILE_KEYS,
@@ -252,9 +259,11 @@ def _explicit_radius_notes(cfg, beads: int, chord: float) -> list[str]:
     ]
 
 
-def _relaxed_notes(check: TemplateCheck, cfg, is_file: bool, max_bond: float) -> list[str]:
+def _relaxed_notes(check: TemplateCheck, cfg, is_file: bool, max_bond: float,
+                   closure_added: bool = False) -> list[str]:
     """Notes on a start checked loosely (a file, an explicit radius); an error for bonds past
-    ``max_bond`` (``run.max_bond_length``), which would stop the run at its first step."""
+    ``max_bond`` (``run.max_bond_length``), which would stop the run at its first step
+    (``closure_added``: the file's chain was open, ``knot.closed = true`` closed it)."""
     bond, steric = cfg["model.bond_length"], check.steric_range
     notes = []
     if check.min_distance < steric:
@@ -278,35 +287,17 @@ def _relaxed_notes(check: TemplateCheck, cfg, is_file: bool, max_bond: float) ->
             if is_file
             else "use a smaller knot.major_radius or more knot.beads"
         )
+        if closure_added and check.worst_bond == check.n_beads - 1:
+            hint = "the closure knot.closed = true adds is that long: leave knot.closed unset"
         raise TemplateError(
-            f"{where}: bond {check.worst_bond} is {check.bond_max:.3f} d, longer than "
+            f"{where}: bond {check.worst_bond}-{(check.worst_bond + 1) % check.n_beads} is "
+            f"{check.bond_max:.3f} d, longer than "
             f"run.max_bond_length={max_bond:g}; {hint}"
         )
     return notes
 
 
-def _ring_closure_notes(structure, cfg, allow_open_chain: bool) -> list[str]:
-    """Notes on a file whose topology does not close the ring; an error for an open chain."""
-    n = structure.positions.shape[0]
-    if structure.ring_closed is None:
-        return [
-            f"{structure.path.name} lists no bonds: the chain is taken as a ring in atom "
-            f"order, bead {n - 1} bonded to bead 0"
-        ]
-    if structure.ring_closed:
-        return []
-    if not allow_open_chain:
-        raise TemplateError(
-            f"knot.path={cfg['knot.path']!r} is an open chain: its bonds do not join the last "
-            f"bead ({n}) to the first, and knotmm simulates rings; close it with "
-            f"`knotmm template file:{cfg['knot.path']} --out closed.pdb` (or add the record "
-            f"'CONECT{1:5d}{n:5d}') and use the closed file"
-        )
-    return [f"{structure.path.name} is an open chain: closed here, bead {n - 1} bonded to bead 0"]
-
-
-def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now",
-                   spec: TemplateSpec | None = None,
+def build_template(cfg, *, identify: str = "now", spec: TemplateSpec | None = None,
                    resources: RunResources | None = None) -> Template:
     """Build and check the starting shape a run file asks for.
 
@@ -314,7 +305,12 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
     closed braid of several components, a LinkInfo name) and an open filament
     (``knot.closed = false``; kinds ``straight``, ``arc``, ``helix``) are built by
     :mod:`knotmm.shapes.system_builders`; the returned template then has a ``layout`` of its
-    chains and, for several chains, their own templates as ``parts``.
+    chains and, for several chains, their own templates as ``parts``. A file
+    (``knot.kind = "file"``) starts as the chains its bonds make
+    (:func:`knotmm.shapes.file_start.file_chains`: rings, open chains, links; an explicit
+    ``knot.closed`` opens or closes every chain): one ring here, any other system by
+    :func:`knotmm.shapes.file_start.build_file`; the template records where it came from
+    (:attr:`Template.source`).
 
     Parameters
     ----------
@@ -323,10 +319,6 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         minor_radius, major_radius, mirror, perturbation), ``model.bond_length`` and
         ``model.lj_sigma``; never a ``run.*`` key (``spec`` and ``resources`` hold what the
         template takes from the ``[run]`` table).
-    allow_open_chain : bool, optional
-        For ``knot.kind = "file"``: whether a file whose bonds leave the ring open (no bond
-        from the last bead to the first) is accepted with a note, and closed. By default
-        it is refused, since a run would simulate a ring the file does not describe.
     identify : {"now", "later", "skip"}, optional
         When the knot type is identified (topoly, in the knot worker): ``"now"`` waits for
         it; ``"later"`` (a run, which must not wait for topoly's start-up) sends the
@@ -353,7 +345,7 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         unknown name), too few beads, beads inside the steric range
         (closer than ``lj_sigma`` for a file or an explicit ``knot.major_radius``), bonds
         past ``run.max_bond_length``, a template of the wrong knot type, or a file whose
-        bonds leave the chain open.
+        chains overlap.
     TrajectoryFileError
         For ``knot.kind = "file"`` with a missing, truncated or mismatched file.
     ConfigError
@@ -375,23 +367,28 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
     spec = TemplateSpec.of(cfg) if spec is None else spec
     resources = RunResources.of(cfg) if resources is None else resources
     if getattr(cfg, "chains", None) is not None:
-        return build_chains(cfg, build_template, spec, resources,
-                            allow_open_chain=allow_open_chain, identify=identify)
-    if is_open(cfg):
-        return build_open(cfg, build_template, spec, resources)
-    if is_link(cfg):
-        return build_link(cfg, spec, resources, identify=identify)
+        return build_chains(cfg, build_template, spec, resources, identify=identify)
     kind = cfg["knot.kind"]
+    structure = None
+    if kind == "file":
+        structure = read_structure(
+            cfg["knot.path"], cfg["knot.frame"], cfg["knot.topology"], RUN_FILE_KEYS
+        )
+        chains = file_chains(structure, cfg["knot.closed"])
+        if not chains.layout.is_single_ring:
+            tpl = build_file(cfg, structure, chains, spec, resources, identify=identify)
+            return _from_file(tpl, structure)
+    elif is_open(cfg):
+        return build_open(cfg, build_template, spec, resources)
+    elif is_link(cfg):
+        return build_link(cfg, spec, resources, identify=identify)
     bond = check_positive(cfg["model.bond_length"], "model.bond_length")
     sigma = check_positive(cfg["model.lj_sigma"], "model.lj_sigma")
     steric = LJ_CUTOFF_FACTOR * sigma
     notes: list[str] = []
     resolved: dict[str, Any] = {}
     shape = None
-    if kind == "file":
-        structure = read_structure(
-            cfg["knot.path"], cfg["knot.frame"], cfg["knot.topology"], RUN_FILE_KEYS
-        )
+    if structure is not None:
         x = structure.positions - structure.positions.mean(axis=0)
         if cfg["knot.mirror"]:
             x = mirror_image(x)
@@ -399,8 +396,8 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         resolved["knot.beads"] = n
         if cfg["knot.beads"] != n:
             notes.append(f"knot.beads={cfg['knot.beads']} ignored: the file holds {n} beads")
-        notes.extend(_ring_closure_notes(structure, cfg, allow_open_chain))
-        label = f"{Path(cfg['knot.path']).name} frame {cfg['knot.frame']}"
+        notes.extend(chains.notes)
+        label = f"{structure.path.name} frame {structure.frame}"
         expected, symmetry = None, ""
     else:
         shape = _spec_from_config(cfg)
@@ -438,13 +435,7 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
     check_memory(resources, x.shape[0])
     perturbation = float(cfg["knot.perturbation"])
     mirror = bool(cfg["knot.mirror"])
-    if perturbation > 0.0:
-        seed = spec.seed
-        rng = np.random.default_rng(seed)
-        x = x + rng.normal(scale=perturbation, size=x.shape)
-        x -= x.mean(axis=0)
-        resolved["knot.seed"] = int(seed)
-        notes.append(f"perturbed by {perturbation:g} d (std per coordinate), seed {seed}")
+    x = perturb(x, perturbation, spec.seed, resolved, notes)
 
     is_file = kind == "file"
     # files and explicit radii start off the model's bond length: bonds and close pairs down
@@ -461,7 +452,8 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         min_distance=sigma if relaxed else None,
     )
     if relaxed:
-        notes.extend(_relaxed_notes(check, cfg, is_file, spec.max_bond_length))
+        notes.extend(_relaxed_notes(check, cfg, is_file, spec.max_bond_length,
+                                    is_file and bool(chains.added)))
     where = f"knot.path={cfg['knot.path']!r} frame {cfg['knot.frame']}" if is_file else ""
 
     def conclude(check: TemplateCheck) -> tuple[str | None, str, list[str]]:
@@ -500,7 +492,7 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
     notes.extend(found)
     for note in notes:
         logger.info("template: %s", note)
-    return Template(
+    tpl = Template(
         positions=np.ascontiguousarray(x, dtype=np.float64),
         description=description,
         resolved=resolved,
@@ -510,6 +502,16 @@ def build_template(cfg, *, allow_open_chain: bool = False, identify: str = "now"
         check=check,
         pending=_deferred_check(x, expected, conclude) if later else None,
     )
+    return tpl if structure is None else _from_file(tpl, structure)
+
+
+def _from_file(tpl: Template, structure) -> Template:
+    """``tpl`` with the record of the file it was read from and the note that says so."""
+    tpl.source = file_source(structure)
+    note = source_note(structure)
+    tpl.notes.append(note)
+    logger.info("template: %s", note)
+    return tpl
 
 
 def _deferred_check(x, expected, conclude) -> PendingKnotCheck | None:

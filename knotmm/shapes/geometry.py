@@ -283,8 +283,8 @@ def from_file(path, frame: int = 0, topology=None) -> np.ndarray:
     -------
     ndarray, shape (n_beads, 3), float64, in d
         The frame's coordinates converted from Angstrom (1 d = 10 A), as stored (not
-        centred); the chain is read in atom order and closed from the last bead to the
-        first.
+        centred), every bead in atom order; its chains (rings, open chains) are
+        :attr:`knotmm.io.structure.Structure.layout` of ``read_structure``.
     """
     return read_structure(path, frame, topology, PLAIN_NAMES).positions
 

@@ -32,8 +32,22 @@ from knotmm.shapes.template import Template
 from knotmm.shapes.validation import check_int, check_positive, parse_word_text
 from knotmm.units import LJ_CUTOFF_FACTOR
 
-__all__ = ["build_chains", "build_link", "build_open", "is_link", "is_open"]
+__all__ = ["build_chains", "build_link", "build_open", "is_link", "is_open", "perturb"]
 
+
+def perturb(x: np.ndarray, perturbation: float, seed: int | None, resolved: dict[str, Any],
+            notes: list[str]) -> np.ndarray:
+    """``x`` (n_beads, 3), in d, with every coordinate of every bead displaced by one normal
+    draw of standard deviation ``perturbation`` from ``numpy.random.default_rng(seed)``, in
+    bead order, and centred again; ``knot.seed`` goes into ``resolved``, a note into
+    ``notes``. ``x`` itself when ``perturbation`` is not positive."""
+    if not perturbation > 0.0:
+        return x
+    x = x + np.random.default_rng(seed).normal(scale=perturbation, size=x.shape)
+    x -= x.mean(axis=0)
+    resolved["knot.seed"] = int(seed)
+    notes.append(f"perturbed by {perturbation:g} d (std per coordinate), seed {seed}")
+    return x
 
 
 def is_open(cfg) -> bool:
@@ -68,7 +82,8 @@ def is_link(cfg) -> bool:
 def build_open(cfg, build_template: Callable, spec: TemplateSpec,
                resources: RunResources) -> Template:
     """An open filament from ``[knot]``: a straight rod, an arc, a helix, or a closed
-    template (a knot, a file) cut open between its last bead and its first.
+    template (a knot, a link) cut open between its last bead and its first (a file's chains
+    are opened by :func:`knotmm.shapes.file_start.file_chains`).
 
     A link with ``knot.closed = false`` is cut open component by component: one open chain
     per component, each between its last bead and its first (its linking numbers are then
@@ -110,21 +125,15 @@ def build_open(cfg, build_template: Callable, spec: TemplateSpec,
             description += " (mirror image)"
     else:  # the closed shape unperturbed: the perturbation is applied below, once
         closed = build_template(cfg.replace({"knot.closed": True, "knot.perturbation": 0.0}),
-                                allow_open_chain=True, identify="skip",
-                                spec=spec.unperturbed(), resources=resources)
+                                identify="skip", spec=spec.unperturbed(), resources=resources)
         x = closed.positions
         resolved.update({k: v for k, v in closed.resolved.items() if k != "knot.seed"})
         description = f"{closed.description.split(', writhe')[0]}, cut open"
-        notes.extend(n for n in closed.notes if "open chain" not in n)
+        notes.extend(closed.notes)
     lengths = closed.layout.lengths if closed is not None else (x.shape[0],)
     check_memory(resources, x.shape[0])
     perturbation = float(cfg["knot.perturbation"])
-    if perturbation > 0.0:
-        seed = spec.seed
-        x = x + np.random.default_rng(seed).normal(scale=perturbation, size=x.shape)
-        x -= x.mean(axis=0)
-        resolved["knot.seed"] = int(seed)
-        notes.append(f"perturbed by {perturbation:g} d (std per coordinate), seed {seed}")
+    x = perturb(x, perturbation, spec.seed, resolved, notes)
     chains = np.split(x, np.cumsum(lengths)[:-1])
     limit = steric if kind in OPEN_KINDS and perturbation == 0.0 else cfg["model.lj_sigma"]
     for k, chain in enumerate(chains):
@@ -351,7 +360,7 @@ def _close_components(components: list[np.ndarray], limit: float):
 
 # -- several chains ---------------------------------------------------------------------------
 def build_chains(cfg, build_template: Callable, spec: TemplateSpec, resources: RunResources,
-                 *, allow_open_chain: bool = False, identify: str = "now") -> Template:
+                 *, identify: str = "now") -> Template:
     """The system of a run file's ``[[chains]]``: each entry built as a one-chain run file
     would be (:meth:`knotmm.config.RunConfig.chain_config`), turned by its ``rotation``,
     moved to its ``offset``, and checked against the others for overlaps.
@@ -366,8 +375,8 @@ def build_chains(cfg, build_template: Callable, spec: TemplateSpec, resources: R
     for c, entry in enumerate(entries):
         sub = cfg.chain_config(c)
         try:
-            part = build_template(sub, allow_open_chain=allow_open_chain, identify=identify,
-                                  spec=spec.part(c), resources=resources)
+            part = build_template(sub, identify=identify, spec=spec.part(c),
+                                  resources=resources)
         except TemplateError as exc:
             raise TemplateError(str(exc).replace("knot.", f"chains[{c}].")) from None
         part.positions = place(part.positions, entry["rotation"], entry["offset"])

@@ -52,6 +52,10 @@ class Template:
         ``layout`` (empty for one chain); ``positions`` holds them one after another.
     chain_facts : dict
         What run.toml records of a system beyond its chains' facts (linking numbers).
+    source : dict
+        Where a start read from a file came from (``knot.kind = "file"``: the file, the
+        frame, its time in the run that wrote it; :func:`knotmm.shapes.file_start.file_source`),
+        recorded as ``started_from``; empty for other starts.
     """
 
     positions: np.ndarray
@@ -65,6 +69,7 @@ class Template:
     layout: ChainLayout | None = None
     parts: list[Template] = field(default_factory=list, repr=False)
     chain_facts: dict[str, Any] = field(default_factory=dict)
+    source: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self):
         if self.layout is None:
@@ -125,8 +130,10 @@ class Template:
         ``template_bond_range`` (``[shortest, longest]`` bond of the start, in d: off the
         bond length for a file or an explicit ``knot.major_radius``; the bonds relax in the
         run). A system of several chains records ``template`` and ``chains``, one table per
-        chain (``id``, ``beads``, ``closed`` and that chain's facts), and ``chain_facts``.
+        chain (``id``, ``beads``, ``closed`` and that chain's facts), and ``chain_facts``. A
+        start read from a file records ``started_from`` (:attr:`source`).
         """
+        source = {"started_from": dict(self.source)} if self.source else {}
         if self.parts:
             chains = []
             layout = self.layout
@@ -134,7 +141,8 @@ class Template:
                 entry = {"id": cid, "beads": part.n_beads, "closed": ring}
                 entry.update({k: v for k, v in part.facts.items() if v is not None})
                 chains.append(entry)
-            return {"template": self.description, "chains": chains, **self.chain_facts}
+            return {"template": self.description, "chains": chains, **self.chain_facts,
+                    **source}
         facts: dict[str, Any] = {
             "template": self.description,
             "template_writhe": float(self.writhe),
@@ -142,6 +150,7 @@ class Template:
         }
         if self.check is not None:
             facts["template_bond_range"] = [float(self.check.bond_min), float(self.check.bond_max)]
+        facts.update(source)
         return facts
 
 

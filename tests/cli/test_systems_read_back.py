@@ -4,7 +4,8 @@
   chains read back, ``--resume`` and (slow) ``analyze``;
 * BUG-20: an edited ``[knotmm.layout]`` is refused on ``--resume`` in one line, before any
   step, run.toml left as it was;
-* BUG-24: ``knotmm template file:`` of a run of two chains is refused, not joined;
+* BUG-24, issue 34: ``knotmm template file:`` of a run of two chains reads two chains,
+  never one;
 * BUG-10 / BUG-11: a perturbed link's replicas differ; a link with ``closed = false`` runs
   as one open chain per component.
 """
@@ -141,13 +142,19 @@ def test_an_edited_layout_is_refused_on_resume_before_any_step(two_rings, tmp_pa
     assert {f.name: f.read_bytes() for f in run.iterdir()} == before
 
 
-def test_a_template_from_a_run_of_two_chains_is_refused(two_rings, tmp_path, capsys):
-    for source in (two_rings / "trajectory.dcd", two_rings / "topology.pdb", two_rings):
+def test_a_template_from_a_run_of_two_chains_reads_two_chains(two_rings, tmp_path, capsys):
+    """Issue 34: it was refused ("does not join"), and before that joined into one ring."""
+    for k, source in enumerate((two_rings / "trajectory.dcd", two_rings / "topology.pdb",
+                                two_rings)):
         capsys.readouterr()
-        out = tmp_path / "t.pdb"
-        assert main(["template", f"file:{source}", "--out", str(out)]) == 2
-        _one_error_line(capsys, "holds 2 chains", "does not join")
-        assert not out.exists()
+        out = tmp_path / f"t{k}.pdb"
+        assert main(["template", f"file:{source}", "--out", str(out)]) == 0
+        text = capsys.readouterr().out
+        assert "60 in 2 chains" in text and "does not join" not in text
+        assert [c.n_atoms for c in mdtraj.load(str(out)).topology.chains] == [30, 30]
+        bonds = {tuple(sorted((a.index, b.index))) for a, b in
+                 mdtraj.load(str(out)).topology.bonds}
+        assert (0, 29) in bonds and (30, 59) in bonds and (29, 30) not in bonds
 
 
 HOPF = """

@@ -1,5 +1,6 @@
 """PDB files of many chains, read back by their CONECT records (BUG-15); a file of several
-chains is never read as one (BUG-24); topology.pdb is written whole or not at all."""
+chains is read as those chains, never as one (BUG-24, issue 34); topology.pdb is written
+whole or not at all."""
 
 from __future__ import annotations
 
@@ -49,17 +50,28 @@ def test_one_ring_reads_back_as_one_ring(tmp_path):
     assert pdb.read_layout(tmp_path / "missing.pdb") is None
 
 
-def test_a_file_of_two_chains_is_refused_as_a_template_not_joined(tmp_path):
+def test_a_file_of_two_chains_is_read_as_two_chains_never_joined(tmp_path):
     x = _rods()[:8] + 0.0
-    layout = ChainLayout((4, 4), (True, True))
+    layout = ChainLayout((4, 4), (True, False))
     write_pdb(tmp_path / "two.pdb", x, layout=layout)
     mdtraj.load(str(tmp_path / "two.pdb")).save_dcd(str(tmp_path / "two.dcd"))
     for name in ("two.pdb", "two.dcd"):
-        with pytest.raises(TemplateError, match=r"holds 2 chains .*does not join") as info:
-            read_structure(tmp_path / name)
-        assert "\n" not in str(info.value)
+        s = read_structure(tmp_path / name)
+        assert s.layout == layout and s.pdb_chains == (4, 4)
+        np.testing.assert_allclose(s.positions, x, atol=1e-4)
     write_pdb(tmp_path / "one.pdb", x, layout=ChainLayout((8,), (True,)))
-    assert read_structure(tmp_path / "one.pdb").ring_closed is True
+    s = read_structure(tmp_path / "one.pdb")
+    assert s.ring_closed is True and s.layout == ChainLayout.ring(8)
+
+
+def test_two_pdb_chains_with_bonds_of_no_bead_chain_are_refused_in_one_line(tmp_path):
+    path = tmp_path / "odd.pdb"
+    write_pdb(path, _rods()[:8], layout=ChainLayout((4, 4), (False, False)))
+    text = path.read_text().replace("END\n", "CONECT    1    7\nEND\n")  # a bond across
+    path.write_text(text)
+    with pytest.raises(TemplateError, match=r"2 PDB chains whose bonds .*does not join") as info:
+        read_structure(path)
+    assert "\n" not in str(info.value)
 
 
 def test_a_pdb_that_cannot_be_finished_leaves_the_old_file(tmp_path, monkeypatch):

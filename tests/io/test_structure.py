@@ -54,3 +54,11 @@ def test_errors_name_the_caller_argument(tmp_path):
         read_structure(tmp_path / "r.pdb", frame=5, names=names)
     with pytest.raises(TemplateError, match=r"^frame=1.5: expected an integer"):
         read_structure(tmp_path / "r.pdb", frame=1.5)
+
+
+def test_a_replica_set_is_named_as_such(tmp_path):
+    (tmp_path / "set").mkdir()
+    (tmp_path / "set" / "replicas.toml").write_text("")
+    with pytest.raises(TrajectoryFileError, match=r"is a set of replicas; give one of them, "
+                                                  r"e\.g\. '.*replica_0'"):
+        read_structure(tmp_path / "set")

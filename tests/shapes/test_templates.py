@@ -14,6 +14,7 @@ from knotmm.io.pdb import mdtraj_topology, write_pdb
 from knotmm.knots.chirality import is_signed, unsigned_knot_type
 from knotmm.knots.identify import identify_knot, topoly_available
 from knotmm.knots.writhe import writhe
+from knotmm.model.layout import ChainLayout
 from knotmm.shapes import (
     BUILTIN_BRAIDS,
     braid_knot,
@@ -501,29 +502,31 @@ def _strip_conect(path):
     path.write_text("".join(lines))
 
 
-def test_open_chain_file_is_refused_for_a_run(tmp_path):
-    from knotmm.workflow import run
-
-    path = tmp_path / "open.pdb"
-    write_pdb(path, torus_knot(2, 3, 60), closed=False)
-    with pytest.raises(TemplateError, match=r"open chain.*CONECT    1   60") as info:
-        build_template(cfg(kind="file", path=str(path)))
-    assert "\n" not in str(info.value)
-    run_cfg = RunConfig.from_dict(
-        {"knot": {"kind": "file", "path": str(path)}, "run": {"duration": 1.0}}
-    )
-    with pytest.raises(TemplateError, match="open chain"):
-        run(run_cfg, tmp_path / "out")
-    assert not (tmp_path / "out").exists()
-
-
-def test_open_chain_is_closed_with_a_note_when_allowed(tmp_path):
+def test_an_open_chain_file_starts_as_an_open_chain(tmp_path):
+    """Issue 34: a file's open chain is read as written (it was refused, or closed)."""
     path = tmp_path / "open.pdb"
     x = torus_knot(2, 3, 60)
     write_pdb(path, x, closed=False)
-    tpl = build_template(cfg(kind="file", path=str(path)), allow_open_chain=True)
-    assert any("open chain" in n for n in tpl.notes)
+    tpl = build_template(cfg(kind="file", path=str(path)))
+    assert tpl.layout == ChainLayout((60,), (False,))
+    assert tpl.knot_type is None and not tpl.parts
     np.testing.assert_allclose(tpl.positions, x - x.mean(axis=0), atol=1e-3)
+
+
+def test_knot_closed_true_closes_an_open_chain_file_with_a_note(tmp_path):
+    path = tmp_path / "open.pdb"
+    x = torus_knot(2, 3, 60)
+    write_pdb(path, x, closed=False)
+    tpl = build_template(cfg(kind="file", path=str(path), closed=True))
+    assert tpl.layout == ChainLayout.ring(60)
+    assert any("knot.closed = true" in n and "closed here" in n for n in tpl.notes)
+    np.testing.assert_allclose(tpl.positions, x - x.mean(axis=0), atol=1e-3)
+    rod = np.c_[0.6 * np.arange(20), np.zeros(20), np.zeros(20)]
+    write_pdb(tmp_path / "rod.pdb", rod, closed=False)
+    with pytest.raises(TemplateError, match=r"bond 19-0 is 11\.400 d.*closure knot\.closed = "
+                                            r"true adds.*leave knot\.closed unset") as info:
+        build_template(cfg(kind="file", path=str(tmp_path / "rod.pdb"), closed=True))
+    assert "\n" not in str(info.value)
 
 
 def test_file_without_bonds_is_taken_as_a_ring_with_a_note(tmp_path):
