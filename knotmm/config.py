@@ -125,7 +125,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "mirror": Key("bool", False, "true: the mirror image (left-handed for T(2,3))"),
         "closed": Key(
             "bool", None, "false: an open filament (no closing bond, no bending at its ends); "
-            "default: true, false for straight, arc and helix",
+            "default: true, false for straight, arc and helix, and for a file as its bonds say "
+            "(false cuts each ring open, true closes each open chain)",
         ),
         "arc_degrees": Key("float", 180.0, "arc: the angle the arc spans, in degrees", 0.0,
                            360.0, True),
