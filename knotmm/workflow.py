@@ -218,6 +218,7 @@ def run(
                 "platform": sim.platform_name,
                 "frame_interval": plan.output.frame_interval,
                 "start_z": float(sim.positions[:, 2].mean()),
+                **sim.model.elasto_gravitation_facts(template.layout.lengths),  # B per chain
             }
             if template.notes:
                 facts["notes"] = list(template.notes)

@@ -52,6 +52,7 @@ def vortex_knot_positions(
     noise: float = 0.0,
     seed: int = 0,
     z_com=None,
+    phase: float = 0.0,
 ) -> np.ndarray:
     """Bead positions of a rotating, swirling, falling torus knot.
 
@@ -76,6 +77,9 @@ def vortex_knot_positions(
         Seed of the noise.
     z_com : array_like of shape (n_frames,), optional
         Height of the centre of the structure, in d; default ``-velocity * t``.
+    phase : float
+        Added to every bead's swirl angle, in rad: with ``p = 1`` and ``phase = pi`` the
+        second component of the torus link T(2, 2q).
 
     Returns
     -------
@@ -86,7 +90,7 @@ def vortex_knot_positions(
     r0 = np.broadcast_to(np.asarray(rho0, dtype=np.float64), t.shape[:1])[:, None]
     amp = np.broadcast_to(np.asarray(swirl_amplitude, dtype=np.float64), t.shape[:1])[:, None]
     a = 2.0 * np.pi * p * np.arange(n_beads)[None, :] / n_beads
-    theta = 2.0 * np.pi * t / tau_swirl + q * a / p
+    theta = 2.0 * np.pi * t / tau_swirl + q * a / p + phase
     rho = r0 + amp * np.sin(theta)
     alpha = a + amp * p / (q * r0) * np.cos(theta) + 2.0 * np.pi * t / tau_rot
     height = -velocity * t if z_com is None else np.asarray(z_com, dtype=np.float64)[:, None]
@@ -129,6 +133,7 @@ def write_run_directory(
     frame_interval: float,
     config: dict | None = None,
     write_run_file: bool = True,
+    layout: ChainLayout | None = None,
 ) -> Path:
     """Save positions as a run directory, through the writers of ``knotmm run``.
 
@@ -143,7 +148,7 @@ def write_run_directory(
     directory : str or Path
         Created if missing.
     positions : array_like, shape (n_frames, n_beads, 3)
-        Bead positions of one ring, in d (written in Angstrom, 1 d = 10 A).
+        Bead positions of the chains (``layout``), in d (written in Angstrom, 1 d = 10 A).
     frame_interval : float
         Time between frames, in tau_d.
     config : dict, optional
@@ -152,6 +157,9 @@ def write_run_directory(
         table is the facts table of ``run.toml`` (``version = "synthetic"`` unless given).
     write_run_file : bool
         False leaves out ``run.toml`` (a bare DCD/PDB pair).
+    layout : ChainLayout, optional
+        The chains (default one ring of all beads); any other is recorded in run.toml's
+        ``[knotmm.layout]``, as a run records it.
 
     Returns
     -------
@@ -163,7 +171,7 @@ def write_run_directory(
     x = np.asarray(positions, dtype=np.float64)
     n_frames, n_beads = x.shape[:2]
     interval = float(frame_interval)
-    layout = ChainLayout((n_beads,), (True,))
+    layout = ChainLayout((n_beads,), (True,)) if layout is None else layout
 
     write_pdb(out / TOPOLOGY_FILE, x[0], layout=layout)
     with open(out / TRAJECTORY_FILE, "wb") as fh:
@@ -181,6 +189,8 @@ def write_run_directory(
             tables.setdefault(name, {}).update(values)
         facts = tables.pop("knotmm", {})
         facts.setdefault("version", "synthetic")
+        if not layout.is_single_ring:
+            facts.setdefault("layout", layout.to_record())
         write_run_toml(out, RunConfig.from_dict(tables), facts)
 
     rows = ObservablesReporter(out / OBSERVABLES_FILE, interval)

@@ -20,7 +20,9 @@ cylindrical coordinates, flat-torus criterion), :mod:`~knotmm.analysis.detect` (
 swirl?), :mod:`~knotmm.analysis.regimes` and :mod:`~knotmm.analysis.regime_report` (regime
 checks and their analysis.json keys), :mod:`~knotmm.analysis.bootstrap` (block-bootstrap
 uncertainties), :mod:`~knotmm.analysis.replicas` (a sweep directory: mean +- standard error
-over replicas).
+over replicas), :mod:`~knotmm.analysis.objects` (what each object is measured as: a ring, an
+open chain, a link, separate chains; the elasto-gravitation number) and
+:mod:`~knotmm.analysis.chains` (a run of several chains).
 """
 
 from knotmm.analysis.body import BodyFrame, body_frame

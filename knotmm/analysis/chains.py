@@ -1,20 +1,32 @@
 """A run of several chains analysed: each chain as a run of its own, and the system.
 
 :func:`analyze_system` (called by :func:`knotmm.analysis.core.analyze` for a trajectory of
-two or more chains, :func:`knotmm.analysis.shape.chains_of`):
+two or more chains, :func:`knotmm.analysis.shape.chains_of`), in the terms of
+:mod:`knotmm.analysis.objects`:
 
 * **each chain** is analysed as a one-chain run (its beads, its bonds, its ``[[chains]]``
-  entry as the ``[knot]`` table, its ``[knotmm.chains]`` facts): its V, rho0, Rg, ACN, knot
-  type and, where it is a torus knot in a toroidal window, the swirl and rotation periods and
-  the vortex-knot fit (``chains`` in analysis.json, one table per chain with its ``id``);
+  entry as the ``[knot]`` table, its ``[knotmm.chains]`` facts): a ring its V, rho0, tau_sed,
+  Rg, ACN, knot type and, where it swirls, its swirl and rotation periods (the vortex-knot
+  fit for a torus knot); an open chain its V, Rg, shape and end-to-end vector, no knot type
+  and no torus quantities; every chain its elasto-gravitation number B (``chains`` in
+  analysis.json, one table per chain with its ``id`` and its ``not_applicable``);
 * **the system**: the speed of the centre of mass of all beads (the top-level
-  ``sedimentation_velocity``, as for one chain), the whole system's Rg and shape, and per
-  pair of chains (``system.pairs``) the distance of their centres of mass and the angle
-  between their axes (the normals of their best planes: the smallest principal axis of the
-  gyration tensor, an angle in 0-90 degrees) at the start, at the end and over the window;
-  the linking numbers of the closed chains at the start and at the end, with every change
-  seen in ``samples`` frames (``system.linking_numbers``, ``system.linking_number_changes``).
-  The swirl and rotation of a system are its chains': the system's own are not reported.
+  ``sedimentation_velocity``), and per pair of chains (``system.pairs``) the distance of
+  their centres of mass, the angle of the line joining them to the vertical (0: one above
+  the other, 90: side by side) and the angle between their axes (a ring's axis is the normal
+  of its best plane, the smallest principal axis of its gyration tensor; an open chain's is
+  its long axis, the largest; an angle in 0-90 degrees) at the start, at the end and over the
+  window; the linking numbers of the closed chains at the start and at the end, with every
+  change seen in ``samples`` frames (``system.linking_numbers``,
+  ``system.linking_number_changes``); ``system.kind``: ``"link"`` or ``"separate chains"``.
+* **a link** (every chain a ring, joined by nonzero linking numbers or built as a link) is
+  one object besides: its rho0, tau_sed, Rg, ACN, writhe, swirl and rotation are measured
+  on all its beads, with the torus formulas and the vortex-knot fit for a torus link T(p, q)
+  (:func:`knotmm.analysis.knot_types.torus_link`); where its own swirl is not measured but
+  every ring's is, and they agree within 5 %, ``tau_swirl`` is their mean
+  (``tau_swirl_source``: ``"chains"``). **Separate chains** are no one structure: the
+  system's rho0, tau_sed, Rg, ACN, swirl and rotation are n/a, each chain's own in
+  ``chains``.
 
 Units: d, tau_d, degrees.
 """
@@ -28,19 +40,35 @@ from typing import Any
 
 import numpy as np
 
+from knotmm.analysis.objects import END_TO_END_KEYS, RING_KEYS, SEPARATE, STRUCTURE_KEYS
 from knotmm.io.run_data import RunData
 from knotmm.model.layout import chain_ids
 
-__all__ = ["analyze_system", "axis_angles", "centre_distances", "linking_series"]
+__all__ = ["analyze_system", "axis_angles", "centre_distances", "linking_series",
+           "separation_angles"]
 
 #: Per-chain analysis.json keys kept in the system's ``chains`` tables.
 CHAIN_KEYS = (
     "sedimentation_velocity", "sedimentation_velocity_uncertainty", "major_radius",
+    "major_radius_std", "major_radius_geometric", "tau_sed", "tau_sed_uncertainty",
     "radius_of_gyration", "radius_of_gyration_perp", "asphericity", "average_crossing_number",
-    "writhe", "handedness", "knot_type", "knot_type_start", "knot_type_end", "p", "q",
-    "tau_swirl", "tau_swirl_uncertainty", "tau_rot", "tau_rot_uncertainty", "swirl_amplitude",
-    "swirl_detected", "rotation_sense", "torus_fraction", "window",
+    "writhe", "handedness", "knot_description", "knot_type", "knot_type_start",
+    "knot_type_end", "knot_type_changes", "torus_knot", "p", "q", "tau_swirl",
+    "tau_swirl_uncertainty", "tau_rot", "tau_rot_uncertainty", "tau_swirl_over_tau_sed",
+    "tau_rot_over_tau_sed", "swirl_amplitude", "swirl_detected", "rotation_sense",
+    "torus_fraction", "window", *END_TO_END_KEYS, "elasto_gravitation_number",
+    "not_applicable",
 )
+#: Why the system has no elasto-gravitation number or end-to-end vector of its own.
+PER_CHAIN = "per chain: see 'chains'"
+#: Why a link has no one knot type.
+LINK_KNOT = "a link: each ring's knot type in 'chains', the linking numbers in 'system'"
+#: Centres of mass closer than this (d, a fifth of the steric range) share their place: the
+#: line joining them has no direction to report (a torus link's congruent rings share their
+#: centre up to rounding), the angle of that line is n/a.
+COINCIDENT = 0.1
+#: Relative difference of the rings' swirl periods within which they are one link's swirl.
+SWIRL_AGREEMENT = 0.05
 
 
 def centre_distances(positions: np.ndarray, a: slice, b: slice) -> np.ndarray:
@@ -48,18 +76,31 @@ def centre_distances(positions: np.ndarray, a: slice, b: slice) -> np.ndarray:
     return np.linalg.norm(positions[:, a].mean(axis=1) - positions[:, b].mean(axis=1), axis=1)
 
 
-def _normals(x: np.ndarray) -> np.ndarray:
-    """Smallest principal axis of each frame's gyration tensor, (n_frames, 3) unit vectors."""
+def _axes(x: np.ndarray, closed: bool = True) -> np.ndarray:
+    """A chain's axis per frame, (n_frames, 3) unit vectors: a ring's best-plane normal (the
+    smallest principal axis of the gyration tensor), an open chain's long axis (the largest)."""
     c = x - x.mean(axis=1, keepdims=True)
     gyration = np.einsum("fni,fnj->fij", c, c) / x.shape[1]
     _, vectors = np.linalg.eigh(gyration)
-    return vectors[:, :, 0]
+    return vectors[:, :, 0 if closed else -1]
 
 
-def axis_angles(positions: np.ndarray, a: slice, b: slice) -> np.ndarray:
-    """Angle between the axes (best-plane normals) of two chains per frame, degrees, 0-90."""
-    cos = np.abs(np.einsum("fi,fi->f", _normals(positions[:, a]), _normals(positions[:, b])))
+def axis_angles(positions: np.ndarray, a: slice, b: slice,
+                closed: tuple[bool, bool] = (True, True)) -> np.ndarray:
+    """Angle between the axes of two chains per frame (:func:`_axes`), degrees, 0-90."""
+    cos = np.abs(np.einsum("fi,fi->f", _axes(positions[:, a], closed[0]),
+                           _axes(positions[:, b], closed[1])))
     return np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
+
+
+def separation_angles(positions: np.ndarray, a: slice, b: slice) -> np.ndarray:
+    """Angle between the line joining two chains' centres of mass and the vertical, per
+    frame, degrees, 0-90: 0 when one is above the other, 90 when side by side."""
+    e = positions[:, b].mean(axis=1) - positions[:, a].mean(axis=1)
+    length = np.linalg.norm(e, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        angle = np.degrees(np.arccos(np.clip(np.abs(e[:, 2]) / length, 0.0, 1.0)))
+    return np.where(length > COINCIDENT, angle, np.nan)  # one centre on the other: no line
 
 
 def linking_series(times, positions, rings: list[tuple[str, slice]], samples: int = 40):
@@ -124,15 +165,78 @@ def _chain_data(data: RunData, k: int, sl: slice, closed: bool) -> RunData:
 
 
 def _pair_row(positions, sel, a, b, ids) -> dict[str, Any]:
-    d = centre_distances(positions, a[1], b[1])
-    angle = axis_angles(positions, a[1], b[1])
+    """``a``, ``b``: ``(slice, closed)`` of two chains; ``ids`` their names."""
+    d = centre_distances(positions, a[0], b[0])
+    angle = axis_angles(positions, a[0], b[0], (a[1], b[1]))
+    vertical = separation_angles(positions, a[0], b[0])
     return {
         "chains": f"{ids[0]}-{ids[1]}",
         "distance_start": float(d[0]), "distance_end": float(d[-1]),
         "distance_window_mean": float(d[sel].mean()), "distance_min": float(d.min()),
+        "separation_angle_to_vertical_start_deg": float(vertical[0]),
+        "separation_angle_to_vertical_end_deg": float(vertical[-1]),
+        "separation_angle_to_vertical_window_mean_deg": _mean(vertical[sel]),
         "axis_angle_start_deg": float(angle[0]), "axis_angle_end_deg": float(angle[-1]),
         "axis_angle_window_mean_deg": float(angle[sel].mean()),
+        "axes": "-".join("normal" if closed else "long axis" for closed in (a[1], b[1])),
     }
+
+
+def _mean(values: np.ndarray) -> float:
+    """Mean of the finite values, NaN (null) when there are none."""
+    finite = values[np.isfinite(values)]
+    return float(finite.mean()) if finite.size else float("nan")
+
+
+def one_link(data: RunData, chains: list[tuple[slice, bool]], linking: dict) -> str | None:
+    """The link's name when the whole system is one link, else None.
+
+    One link: every chain a ring, and either the run file built it as a link (run.toml's
+    ``[knotmm] link``) or the rings' nonzero linking numbers at the start join them all
+    (a link with linking number 0, the Whitehead link read from a file, is not recognised).
+    """
+    if len(chains) < 2 or not all(closed for _, closed in chains):
+        return None
+    facts = data.get("knotmm", {}) or {}
+    if facts.get("link") and not data.get("chains"):
+        return str(facts["link"])
+    ids = chain_ids(len(chains))
+    joined = {ids[0]}
+    for _ in ids:
+        for pair, lk in linking.items():
+            a, b = pair.split("-")
+            if lk and (a in joined or b in joined):
+                joined |= {a, b}
+    return "linked rings" if joined == set(ids) else None
+
+
+def _swirl_from_chains(system, per_chain: list[dict]) -> None:
+    """A link's tau_swirl: its own, checked against its rings', or else theirs (docstring)."""
+    own = system.tau_swirl
+    theirs = [c.get("tau_swirl") for c in per_chain]
+    measured = [t for t in theirs if t is not None]
+    if np.isfinite(own):
+        system.extra["tau_swirl_source"] = "the link's beads"
+        off = [f"{c['id']} {t:.4g}" for c, t in zip(per_chain, theirs, strict=True)
+               if t is not None and abs(t - own) > SWIRL_AGREEMENT * own]
+        if off:
+            system.notes.append(
+                f"the link's tau_swirl ({own:.4g} tau_d) and its rings' differ by more than "
+                f"{SWIRL_AGREEMENT:.0%}: {', '.join(off)} tau_d")
+        return
+    if len(measured) == len(per_chain) and np.ptp(measured) <= SWIRL_AGREEMENT * min(measured):
+        system.tau_swirl = float(np.mean(measured))
+        errors = [c.get("tau_swirl_uncertainty") for c in per_chain]
+        errors = [e for e in errors if e is not None]
+        system.tau_swirl_uncertainty = (float(np.sqrt(np.mean(np.square(errors))))
+                                        if errors else float("nan"))
+        system.extra["tau_swirl_source"] = "chains"
+        system.notes.append(
+            f"tau_swirl of the link = {system.tau_swirl:.4g} tau_d, the mean of its rings' "
+            f"({', '.join(f'{t:.4g}' for t in measured)}; within {SWIRL_AGREEMENT:.0%}): the "
+            "swirl of all its beads was not measured")
+    else:
+        system.extra["tau_swirl_source"] = None
 
 
 def analyze_system(data: RunData, chains: list[tuple[slice, bool]], analyze_one: Callable,
@@ -145,48 +249,65 @@ def analyze_system(data: RunData, chains: list[tuple[slice, bool]], analyze_one:
     chains : list of (slice, bool)
         The chains' bead ranges and whether each is closed.
     analyze_one : callable
-        The one-chain analysis (:func:`knotmm.analysis.core.analyze` of a single chain),
-        called as ``analyze_one(data, t_from=, t_to=, knot_samples=, fit=)``.
+        The one-chain analysis (:func:`knotmm.analysis.core._analyze_one`), called as
+        ``analyze_one(data, t_from=, t_to=, knot_samples=, fit=, part_of=)``.
 
     Returns
     -------
     AnalysisResult
-        The system's (V of all beads, its shape), with ``extra["chains"]`` and
+        The system's (V of all beads; a link's structure), with ``extra["chains"]`` and
         ``extra["system"]``.
     """
     ids = chain_ids(len(chains))
+    what = f"{len(chains)}-chain system"
     per_chain = []
     for k, (sl, closed) in enumerate(chains):
         result = analyze_one(_chain_data(data, k, sl, closed), t_from=t_from, t_to=t_to,
-                             knot_samples=knot_samples if closed else 0, fit=fit)
+                             knot_samples=knot_samples if closed else 0, fit=fit, part_of=what)
         row = {key: v for key, v in result.to_dict().items() if key in CHAIN_KEYS}
         per_chain.append({"id": ids[k], "beads": sl.stop - sl.start, "closed": closed, **row,
                           "notes": list(result.notes)})
-    whole_config = copy.deepcopy(data.config)
-    whole_config["knot"] = {"kind": "system", "closed": True}
-    whole = replace(data, config=whole_config, notes=list(data.notes))
-    system = analyze_one(whole, t_from=t_from, t_to=t_to, knot_samples=0, fit=False)
-    sel = system.window.frames
-    pairs = [_pair_row(data.positions, sel, (ids[i], chains[i][0]), (ids[j], chains[j][0]),
-                       (ids[i], ids[j]))
-             for i in range(len(chains)) for j in range(i + 1, len(chains))]
     rings = [(ids[k], sl) for k, (sl, closed) in enumerate(chains) if closed]
-    record: dict[str, Any] = {"n_chains": len(chains), "pairs": pairs}
+    record: dict[str, Any] = {"n_chains": len(chains)}
+    start = {}
     if len(rings) > 1:
         start, end, changes = linking_series(data.times, data.positions, rings)
         record.update(linking_numbers=start, linking_numbers_end=end,
                       linking_number_changes=changes)
-    nan = float("nan")
-    system.tau_swirl = system.tau_swirl_uncertainty = nan
-    system.tau_rot = system.tau_rot_uncertainty = system.swirl_amplitude = nan
-    system.rotation_sense = None
-    system.swirl_detected = False
-    system.p = system.q = None
-    system.notes = [n for n in system.notes if not _about_one_chain(n)]
-    system.notes.insert(0, f"a system of {len(chains)} chains: V, Rg and shape here are the "
-                           f"whole system's; each chain's own analysis (its V, knot type, "
-                           f"swirl and rotation) is in 'chains', the pairs' distances and "
-                           f"angles in 'system'")
+    link = one_link(data, chains, start)
+    record["kind"] = "link" if link is not None else "separate chains"
+    whole_config = copy.deepcopy(data.config)
+    if link is None:
+        whole_config["knot"] = {"kind": "system", "closed": True}
+    whole = replace(data, config=whole_config, notes=list(data.notes))
+    system = analyze_one(whole, t_from=t_from, t_to=t_to, knot_samples=0,
+                         fit=fit and link is not None, part_of=what)
+    sel = system.window.frames
+    record["pairs"] = [
+        _pair_row(data.positions, sel, chains[i], chains[j], (ids[i], ids[j]))
+        for i in range(len(chains)) for j in range(i + 1, len(chains))]
+    system.not_applicable.update(dict.fromkeys(
+        (*END_TO_END_KEYS, "elasto_gravitation_number"), PER_CHAIN))
+    system.notes = [n for n in system.notes
+                    if "knot identification skipped" not in n and "elasto-gravitation" not in n]
+    if link is None:
+        system.notes = [n for n in system.notes if not _about_one_chain(n)]
+        system.not_applicable.update(dict.fromkeys(STRUCTURE_KEYS, SEPARATE))
+        system.notes.insert(0, (
+            f"a system of {len(chains)} separate chains: V here is the speed of the centre of "
+            "mass of all beads; rho0, tau_sed, Rg, ACN, swirl and rotation belong to each "
+            "chain ('chains'), the pairs' distances and orientations and the linking numbers "
+            "to 'system'"))
+    else:
+        knot_keys = [k for k in RING_KEYS if k.startswith("knot_type")]
+        system.not_applicable.update(dict.fromkeys(knot_keys, LINK_KNOT))
+        _swirl_from_chains(system, per_chain)
+        torus = (f"the torus link T({system.p},{system.q}): the vortex-knot formulas apply"
+                 if system.p is not None else "not a torus link: no torus formulas")
+        system.notes.insert(0, (
+            f"a link ({link}) of {len(chains)} rings, analysed as one object: V, rho0, "
+            f"tau_sed, Rg, ACN, swirl and rotation here are measured on all its beads, "
+            f"{torus}; each ring's own in 'chains'"))
     system.extra["chains"] = per_chain
     system.extra["system"] = record
     return system
@@ -197,4 +318,3 @@ def _about_one_chain(note: str) -> bool:
     words = ("swirl", "torus", "vortex", "rotation", "knot type", "ring bonds", "p =", "q =",
              "knot identification")
     return any(w in note for w in words)
-

@@ -33,6 +33,14 @@ from knotmm.analysis.knot_types import (
     rotation_sense,
     run_knot,
 )
+from knotmm.analysis.objects import (
+    END_TO_END_KEYS,
+    RING,
+    analyze_open_chain,
+    bond_length_of,
+    elasto_keys,
+    fall_speed,
+)
 from knotmm.analysis.regime_report import (
     body_fit_coordinates,
     regime_keys,
@@ -72,15 +80,6 @@ def _detected(windings: np.ndarray) -> int | None:
     return value if value >= 1 else None
 
 
-def _velocity(times: np.ndarray, z_com: np.ndarray) -> tuple[float, float]:
-    """Falling speed (positive down) and the standard error of the slope."""
-    s = times - times.mean()
-    slope = float((s * (z_com - z_com.mean())).sum() / (s * s).sum())
-    resid = z_com - z_com.mean() - slope * s
-    err = math.sqrt(float((resid**2).sum()) / max(len(s) - 2, 1) / float((s * s).sum()))
-    return -slope, err
-
-
 @single_threaded_blas
 def analyze(
     data: RunData,
@@ -105,8 +104,11 @@ def analyze(
         Default: ``knot.p``/``knot.q`` of a torus-knot run file, or the (p, q) of a torus
         knot's name or type (p the pair's member the chain winds about the vertical axis);
         with no run file, p is the chain's winding number about the vertical axis and q is
-        None (the fit then uses the detected core winding). Any other knot, a link or an
-        open chain gets no p, q, ``N l0 / (2 pi p)`` or fit (a note says why).
+        None (the fit then uses the detected core winding). Any other knot or a link that
+        is no torus link gets no p, q, ``N l0 / (2 pi p)`` or fit (a note says why); a torus
+        link takes them from its run file; an open chain has none of them, nor a knot type
+        (:mod:`knotmm.analysis.objects`), and refuses ``p``/``q``, as a run of several
+        chains does.
     knot_samples : int
         Frames identified with topoly when looking for a change of knot type (plus a
         bisection); 0 skips knot identification.
@@ -127,8 +129,9 @@ def analyze(
         from knotmm.analysis.chains import analyze_system
 
         if p is not None or q is not None:
-            raise ConfigError("--p/--q apply to one chain; this run has "
-                              f"{len(chains)} chains, each analysed with its own knot")
+            raise ConfigError(
+                f"--p/--q apply to one ring; this run has {len(chains)} chains, each analysed "
+                "with its own knot (a torus link takes its p and q from its run file)")
         return analyze_system(data, chains, _analyze_one, t_from=t_from, t_to=t_to,
                               knot_samples=knot_samples, fit=fit)
     return _analyze_one(data, t_from=t_from, t_to=t_to, p=p, q=q, knot_samples=knot_samples,
@@ -136,11 +139,18 @@ def analyze(
 
 
 def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_samples=40,
-                 fit=True) -> AnalysisResult:
-    """:func:`analyze` of one chain (or of a whole system, for its shape and speed)."""
+                 fit=True, part_of: str | None = None) -> AnalysisResult:
+    """:func:`analyze` of one chain (or of a whole system, for its shape and speed).
+
+    ``part_of`` names the system a chain belongs to (then no note advises ``--p``/``--q``,
+    which apply to a run of one ring only). An open chain is measured as what it is
+    (:func:`knotmm.analysis.objects.analyze_open_chain`).
+    """
+    chains = chains_of(data)
+    if len(chains) == 1 and not chains[0][1]:
+        return analyze_open_chain(data, chains, t_from=t_from, t_to=t_to, p=p, q=q)
     notes = list(data.notes)
     times, positions = data.times, data.positions
-    chains = chains_of(data)
     # A change of knot type (strands passing through each other) ends any periodic state:
     # unless --to is given, the window is looked for only in the frames before the first
     # change (the same detection, on a shorter trajectory, so a collapse is still found).
@@ -187,16 +197,19 @@ def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_sam
     else:
         kt = KnotTypes(None, None, None, notes=["knot identification skipped"])
     knot = run_knot(data, chains, kt.initial)
-    axis_w, core_w = winding_numbers(x_w[:: max(1, len(x_w) // 50)])
+    axis_w, core_w = winding_numbers(x_w[:: max(1, len(x_w) // 50)],
+                                     [sl for sl, _ in chains] if len(chains) > 1 else None)
     p_det, q_det = _detected(axis_w), _detected(core_w)
     torus = knot.torus if p is None else (p, q)
     p, q, p_src, q_src = _torus_pq(torus, knot.torus_source, p, q, p_det, notes)
     if torus is None:
         named = f"{knot.description}" + (
             f", {knot.knot_type} from {knot.source}" if knot.knot_type else "")
+        advice = (" (give --p and --q to apply the torus formulas anyway)"
+                  if part_of is None and len(chains) == 1 else "")
         notes.append(
             f"not a torus knot ({named}): p, q, N l0/(2 pi p) and the vortex-knot fit are "
-            "not reported (give --p and --q to apply the torus formulas anyway)"
+            f"not reported{advice}"
         )
     else:
         if p_det is not None and p_det != p:
@@ -205,16 +218,10 @@ def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_sam
             notes.append(f"q = {q} ({q_src}) but the chain winds {q_det} times around its core")
 
     # V, rho0, geometric estimate
-    velocity, velocity_err = _velocity(t_w, coords.com[sel, 2])
+    velocity, velocity_err = fall_speed(t_w, coords.com[sel, 2])
     radius_per_frame = rho.mean(axis=1)
     rho0, rho0_std = float(radius_per_frame.mean()), float(radius_per_frame.std())
-    bond = data.get("model.bond_length")
-    if bond is None:
-        x0 = positions[0]
-        pairs = np.asarray(data.bonds)
-        bond = float(np.median(np.linalg.norm(x0[pairs[:, 1]] - x0[pairs[:, 0]], axis=1)))
-        notes.append(f"no model.bond_length in a run file: l0 = {bond:.4g} d measured at t = 0")
-    bond = float(bond)
+    bond = bond_length_of(data, notes)
     rho_geo = float("nan")
     if torus is not None and regime.toroidal:
         rho_geo = data.n_beads * bond / (2.0 * math.pi * p)
@@ -323,7 +330,8 @@ def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_sam
         if rot_ok or regime.tilted:
             notes.append(f"body frame: {body_why}: tau_rot_body not measured")
 
-    return AnalysisResult(
+    extra.update(elasto_keys(data, data.n_beads, notes))
+    result = AnalysisResult(
         sedimentation_velocity=velocity,
         sedimentation_velocity_uncertainty=velocity_err,
         major_radius=rho0,
@@ -362,6 +370,8 @@ def _analyze_one(data: RunData, t_from=None, t_to=None, p=None, q=None, knot_sam
         knot=knot,
         shape=shape,
     )
+    result.not_applicable.update(dict.fromkeys(END_TO_END_KEYS, RING))
+    return result
 
 
 def _torus_pq(torus, source, p, q, p_det, notes):

@@ -63,7 +63,7 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def winding_numbers(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def winding_numbers(positions: np.ndarray, rings=None) -> tuple[np.ndarray, np.ndarray]:
     """How often the closed chain winds around the vertical axis and around its core.
 
     For a torus knot T(p, q) lying on a horizontal torus, the chain goes ``p`` times around
@@ -76,6 +76,9 @@ def winding_numbers(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ----------
     positions : ndarray, shape (n_frames, n_beads, 3)
         Bead positions, in d; bead ``i`` is bonded to ``i + 1`` and the last to the first.
+    rings : sequence of slice, optional
+        The closed chains of a link: the windings of each about the whole system's axis and
+        core, summed (a torus link T(p, q) gives p and q). Default: one ring of all beads.
 
     Returns
     -------
@@ -85,8 +88,10 @@ def winding_numbers(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     cyl = cylindrical(positions)
     rel = np.asarray(positions, dtype=np.float64) - cyl.com[:, None, :]
     alpha = np.arctan2(rel[..., 1], rel[..., 0])
-    d_alpha = _wrap(np.roll(alpha, -1, axis=1) - alpha)
     psi = np.arctan2(cyl.rho - cyl.rho.mean(axis=1, keepdims=True), cyl.z)
-    d_psi = _wrap(np.roll(psi, -1, axis=1) - psi)
-    two_pi = 2.0 * np.pi
-    return d_alpha.sum(axis=1) / two_pi, d_psi.sum(axis=1) / two_pi
+    rings = [slice(0, alpha.shape[1])] if rings is None else list(rings)
+    turns = np.zeros((2, alpha.shape[0]))
+    for ring in rings:
+        for k, angle in enumerate((alpha[:, ring], psi[:, ring])):
+            turns[k] += _wrap(np.roll(angle, -1, axis=1) - angle).sum(axis=1)
+    return turns[0] / (2.0 * np.pi), turns[1] / (2.0 * np.pi)

@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,7 @@ __all__ = [
     "KnotTypes",
     "RunKnot",
     "run_knot",
+    "torus_link",
     "handedness",
     "identify_signed",
     "rotation_sense",
@@ -230,6 +232,29 @@ class RunKnot:
         return self.torus is not None
 
 
+def torus_link(data, chains) -> tuple[int, int] | None:
+    """``(p, q)`` when the run's ``[knot]`` table is the torus link T(p, q) its rings are.
+
+    ``kind = "torus"`` with ``gcd(p, q)`` equal to the number of chains (all closed), or a
+    link name drawn as a torus link (``"hopf"``: T(2,2), ``"solomon"``: T(2,4)); None for any
+    other system (``[[chains]]``, braid links, open components).
+    """
+    from knotmm.shapes.links import COMMON_LINKS
+
+    if data.get("chains") or not all(closed for _, closed in chains) or len(chains) < 2:
+        return None
+    kind, p, q = data.get("knot.kind"), data.get("knot.p"), data.get("knot.q")
+    if kind == "knotinfo":
+        drawn = COMMON_LINKS.get(str(data.get("knot.name", "")).strip().lower())
+        if drawn is None or drawn[0] != "torus":
+            return None
+        p, q = drawn[1]
+    elif kind != "torus" or p is None or q is None:
+        return None
+    p, q = int(p), int(q)
+    return (p, q) if math.gcd(p, q) == len(chains) else None
+
+
 def run_knot(data, chains, initial: str | None = None) -> RunKnot:
     """Name a run's knot and decide whether the torus formulas apply (module docstring).
 
@@ -260,6 +285,10 @@ def run_knot(data, chains, initial: str | None = None) -> RunKnot:
     name = data.get("knot.name")
     by_type = torus_of_name.get(chirality.unsigned_knot_type(knot_type) or "")
     if len(chains) > 1:
+        link = torus_link(data, chains)
+        if link is not None:
+            return RunKnot(knot_type, source, f"T({link[0]},{link[1]}) torus link", link,
+                           "run file")
         what = f"{len(chains)}-chain system" if name is None else f"{len(chains)}-chain {name}"
         return RunKnot(knot_type, source, what, None)
     if not chains[0][1]:

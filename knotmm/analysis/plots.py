@@ -163,7 +163,7 @@ def plot_bead_coordinate(result: AnalysisResult, which: str = "rho", beads=None,
     _shade_window(ax, result)
     for b in beads:
         ax.plot(t, values[:, b], lw=0.9, label=f"bead {b}")
-    if which == "rho":
+    if which == "rho" and "major_radius" not in result.not_applicable:  # rho0's series
         ax.plot(t, values.mean(axis=1), color="k", lw=1.2, label="mean")
         if _finite(result.major_radius_geometric):  # defined for a torus knot only
             ax.axhline(result.major_radius_geometric, color="0.4", ls=":", lw=1,
@@ -246,7 +246,10 @@ def plot_spectrum(result: AnalysisResult, ax=None):
         peak = spec.peak
         value, err = d.get(key), d.get(f"{key}_uncertainty")
         marked = True
-        if spec.name == "swirl" and not result.swirl_detected:
+        why = result.not_applicable.get(key)
+        if why is not None:
+            text, marked = f"${tau}$ n/a ({why})", False
+        elif spec.name == "swirl" and not result.swirl_detected:
             text = "no swirl detected: dashes at the highest point"
         elif value is None:
             text, marked = f"${tau}$ n/a (not measured)", False
@@ -457,7 +460,9 @@ def save_plots(result: AnalysisResult, directory, dpi: int = 150) -> list[Path]:
     """Write the PNG files of :data:`PLOT_FILES` into ``directory``.
 
     Without a vortex-knot fit (``result.fit`` None) the collapse figure is not written (one
-    from an earlier analysis is removed) and a note in ``result.notes`` says so.
+    from an earlier analysis is removed) and a note in ``result.notes`` says so; the same for
+    the spectrum figure where the swirl does not apply (``result.not_applicable``: an open
+    chain, a system of separate chains).
 
     Returns
     -------
@@ -475,9 +480,16 @@ def save_plots(result: AnalysisResult, directory, dpi: int = 150) -> list[Path]:
     fig.suptitle(title)
     written.append(_save(fig, out / PLOT_FILES["timeseries"], dpi))
 
-    fig = Figure(figsize=(8, 4.5), layout="constrained")
-    plot_spectrum(result, ax=fig.add_subplot())
-    written.append(_save(fig, out / PLOT_FILES["spectrum"], dpi))
+    spectrum = out / PLOT_FILES["spectrum"]
+    why = result.not_applicable.get("tau_swirl")
+    if why is None:
+        fig = Figure(figsize=(8, 4.5), layout="constrained")
+        plot_spectrum(result, ax=fig.add_subplot())
+        written.append(_save(fig, spectrum, dpi))
+    else:  # no swirl or rotation to show (an open chain, separate chains)
+        spectrum.unlink(missing_ok=True)
+        result.notes.append(f"{PLOT_FILES['spectrum']} not written: swirl and rotation do not "
+                            f"apply ({why})")
 
     collapse = out / PLOT_FILES["collapse"]
     if result.fit is not None:

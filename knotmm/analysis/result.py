@@ -95,7 +95,14 @@ class AnalysisResult:
         (and ``tau_swirl`` is None in the JSON).
     extra : dict
         The keys of :func:`knotmm.analysis.regime_report.regime_keys` (body frame, torus
-        fraction, swirl detection, bootstrap uncertainties), merged into ``to_dict()``.
+        fraction, swirl detection, bootstrap uncertainties), the elasto-gravitation number,
+        an open chain's end-to-end vector (:mod:`knotmm.analysis.objects`), a system's
+        ``chains`` and ``system``; merged into ``to_dict()``.
+    not_applicable : dict
+        ``{key: reason}``: analysis.json keys that do not apply to what was analysed (a
+        ring's knot type and torus quantities for an open chain, one structure's for
+        separate chains, an end-to-end vector for a ring): ``None`` in ``to_dict()``, which
+        also holds this mapping, and "n/a (reason)" in the table.
     """
 
     sedimentation_velocity: float
@@ -134,6 +141,7 @@ class AnalysisResult:
     coords: Cylindrical | None = field(default=None, repr=False)
     knot: RunKnot | None = None
     shape: ShapeSeries | None = field(default=None, repr=False)
+    not_applicable: dict = field(default_factory=dict)
 
     # -- display -------------------------------------------------------------------------
     def summary(self) -> str:
@@ -312,9 +320,22 @@ class AnalysisResult:
             "plots": list(self.plots),
             "tilt": self.tilt,
             **self.extra,  # regime checks, body frame, bootstrap (knotmm.analysis.regime_report)
-            "notes": list(self.notes),
         }
+        for key in self.not_applicable:  # never a number for what does not apply
+            out[key] = None
+        if isinstance(out.get("uncertainties"), dict):
+            out["uncertainties"] = uncertainties = dict(out["uncertainties"])
+            for name in uncertainties:
+                if _UNCERTAINTY_OF.get(name, name) in self.not_applicable:
+                    uncertainties[name] = None
+        out["not_applicable"] = dict(self.not_applicable)
+        out["notes"] = list(self.notes)
         return _clean(out)
+
+
+#: The analysis.json key each bootstrap entry of ``uncertainties`` belongs to, where named
+#: otherwise.
+_UNCERTAINTY_OF = {"swirl_rms": "swirl_amplitude", "swirl_frequency": "tau_swirl"}
 
 
 def _relative(data: RunData | None, name: str) -> str | None:
@@ -354,6 +375,10 @@ def _fmt_signed(value) -> str:
 
 
 def _knot_row(d: dict) -> str:
+    na = d.get("not_applicable") or {}
+    if "knot_type" in na:  # an open chain, separate chains
+        what, why = d["knot_description"] or "chain", na["knot_type"]
+        return f"{what}: no knot type" + ("" if what in why else f" ({why})")
     named = d["knot_type"] or "type not identified"
     if d["knot_type_source"]:
         named += f", from {d['knot_type_source']}"
@@ -364,80 +389,106 @@ def _knot_row(d: dict) -> str:
 
 
 def _with_error(d: dict, name: str) -> str:
-    err = (d.get("uncertainties") or {}).get(name, {}).get("std_error")
+    err = ((d.get("uncertainties") or {}).get(name) or {}).get("std_error")
     return _fmt(d.get(name), err)
 
 
 def _rows(result: AnalysisResult) -> tuple[list[tuple[str, str]], list[str]]:
-    """The rows of :func:`format_table` and its notes."""
+    """The rows of :func:`format_table` and its notes.
+
+    Rows whose quantities do not apply (``not_applicable``) are left out and named in one
+    row per reason: "n/a  rho0, C, tau_sed, ...  (an open chain)".
+    """
     d = result.to_dict()
     q = d["fit_quality"] or {}
     knot = d["knot_type_start"]
     if d["knot_type_end"] != d["knot_type_start"]:
         knot = f"{d['knot_type_start']} -> {d['knot_type_end']}"
-    changes = describe_changes(d["knot_type_changes"])
+    changes = describe_changes(d["knot_type_changes"] or [])
     win = result.window
     end = win.end_reason
     if win.collapse_time is not None:
-        end += f"; torus radius collapsed at t = {win.collapse_time:g}"
+        what = "torus radius" if "major_radius" not in result.not_applicable else (
+            "mean radius about the vertical axis")
+        end += f"; {what} collapsed at t = {win.collapse_time:g}"
     rho0 = _fmt(d["major_radius"])
     if d["major_radius_geometric"] is not None:
         rho0 += f"   (N l0/(2 pi p) = {_fmt(d['major_radius_geometric'])})"
     rows = [
-        ("window [tau_d]", f"{win.t0:g} .. {win.t1:g}  ({win.n_frames} frames; end: {end})"),
-        ("knot", _knot_row(d)),
-        ("V [d/tau_d]", _fmt(d["sedimentation_velocity"], d["sedimentation_velocity_uncertainty"])),
-        ("rho0 [d]", rho0),
-        ("Rg [d]", _with_error(d, "radius_of_gyration")),
-        ("Rg perp. to gravity [d]", _with_error(d, "radius_of_gyration_perp")),
-        ("asphericity", _with_error(d, "asphericity")),
-        ("average crossing number", _with_error(d, "average_crossing_number")),
-        ("C [d]", _fmt(d["swirl_amplitude"])),
-        ("tau_sed [tau_d]", _fmt(d["tau_sed"], d["tau_sed_uncertainty"])),
-        ("tau_swirl [tau_d]", _fmt(d["tau_swirl"], d["tau_swirl_uncertainty"])),
-        ("tau_rot [tau_d]", _fmt(d["tau_rot"], d["tau_rot_uncertainty"])),
-        (
-            "tau_swirl/tau_sed",
-            _fmt(d["tau_swirl_over_tau_sed"], d["tau_swirl_over_tau_sed_uncertainty"]),
-        ),
-        ("tau_rot/tau_sed", _fmt(d["tau_rot_over_tau_sed"], d["tau_rot_over_tau_sed_uncertainty"])),
-        ("rotation (from above)", _fmt(d["rotation_sense"])),
-        ("swirl", _fmt(d["swirl_sense"])),
-        ("writhe", f"{_fmt_signed(d['writhe'])}  (handedness {_fmt(d['handedness'])})"),
-        ("knot type", _fmt(knot) + (f"  (changes: {changes})" if changes else "")),
-        (
-            "fit R^2 (rho, alpha, z)",
-            ", ".join(_fmt(q.get(k), digits=3) for k in ("r2_rho", "r2_alpha", "r2_z")),
-        ),
+        ("window [tau_d]", (), f"{win.t0:g} .. {win.t1:g}  ({win.n_frames} frames; end: {end})"),
+        ("knot", ("knot_description",), _knot_row(d)),
+        ("V [d/tau_d]", ("sedimentation_velocity",),
+         _fmt(d["sedimentation_velocity"], d["sedimentation_velocity_uncertainty"])),
+        ("rho0 [d]", ("major_radius",), rho0),
+        ("Rg [d]", ("radius_of_gyration",), _with_error(d, "radius_of_gyration")),
+        ("Rg perp. to gravity [d]", ("radius_of_gyration_perp",),
+         _with_error(d, "radius_of_gyration_perp")),
+        ("asphericity", ("asphericity",), _with_error(d, "asphericity")),
+        ("average crossing number", ("average_crossing_number",),
+         _with_error(d, "average_crossing_number")),
+        ("end-to-end length [d]", ("end_to_end_length",), _end_to_end(d, "end_to_end_length")),
+        ("end-to-end vs vertical [deg]", ("end_to_end_angle_to_vertical_deg",),
+         _end_to_end(d, "end_to_end_angle_to_vertical", "_deg") + "  (90: horizontal)"),
+        ("B = N^3 F0 l0/A", ("elasto_gravitation_number",),
+         _fmt(d.get("elasto_gravitation_number"))),
+        ("C [d]", ("swirl_amplitude",), _fmt(d["swirl_amplitude"])),
+        ("tau_sed [tau_d]", ("tau_sed",), _fmt(d["tau_sed"], d["tau_sed_uncertainty"])),
+        ("tau_swirl [tau_d]", ("tau_swirl",), _fmt(d["tau_swirl"], d["tau_swirl_uncertainty"])),
+        ("tau_rot [tau_d]", ("tau_rot",), _fmt(d["tau_rot"], d["tau_rot_uncertainty"])),
+        ("tau_swirl/tau_sed", ("tau_swirl_over_tau_sed",),
+         _fmt(d["tau_swirl_over_tau_sed"], d["tau_swirl_over_tau_sed_uncertainty"])),
+        ("tau_rot/tau_sed", ("tau_rot_over_tau_sed",),
+         _fmt(d["tau_rot_over_tau_sed"], d["tau_rot_over_tau_sed_uncertainty"])),
+        ("rotation (from above)", ("rotation_sense",), _fmt(d["rotation_sense"])),
+        ("swirl", ("swirl_sense",), _fmt(d["swirl_sense"])),
+        ("writhe", ("writhe",),
+         f"{_fmt_signed(d['writhe'])}  (handedness {_fmt(d['handedness'])})"),
+        ("knot type", ("knot_type_start",),
+         _fmt(knot) + (f"  (changes: {changes})" if changes else "")),
+        ("fit R^2 (rho, alpha, z)", ("fit_quality",),
+         ", ".join(_fmt(q.get(k), digits=3) for k in ("r2_rho", "r2_alpha", "r2_z"))),
     ]
-    tilt = tilt_row(d) if not d.get("chains") else None  # a system: its chains' business
+    tilt = tilt_row(d)
     if tilt:
-        rows.append(("torus axis vs gravity", tilt))
-        rows.append(("swirl test", d["swirl_detection"]["reason"].split(":")[0]))
+        rows.append(("torus axis vs gravity", (), tilt))
+        rows.append(("swirl test", (), d["swirl_detection"]["reason"].split(":")[0]))
         body_tau = _fmt(d["tau_swirl_body"], d["tau_swirl_body_uncertainty"])
-        rows.append(("tau_swirl body [tau_d]", body_tau))
-        rows.append((
-            "swirl half-amplitude rho, z [d]",
-            f"{_fmt(d['swirl_amplitude_rho'])}, {_fmt(d['swirl_amplitude_z'])}",
-        ))
-    rows += _system_rows(d)
-    return rows, list(d["notes"])
+        rows.append(("tau_swirl body [tau_d]", (), body_tau))
+        rows.append(("swirl half-amplitude rho, z [d]", (),
+                     f"{_fmt(d['swirl_amplitude_rho'])}, {_fmt(d['swirl_amplitude_z'])}"))
+    na = d.get("not_applicable") or {}
+    shown = [(label, text) for label, keys, text in rows
+             if not (keys and all(k in na for k in keys))]
+    for reason in dict.fromkeys(na.values()):  # one row per reason, in order
+        names = [_short(label) for label, keys, _ in rows
+                 if keys and all(na.get(k) == reason for k in keys)]
+        if names:
+            shown.append(("n/a", f"{', '.join(names)}  ({reason})"))
+    shown += _system_rows(d)
+    return shown, list(d["notes"])
+
+
+def _short(label: str) -> str:
+    """A row's label without its unit: ``"rho0 [d]"`` -> ``"rho0"``."""
+    return label.split(" [")[0]
+
+
+def _end_to_end(d: dict, name: str, unit: str = "") -> str:
+    """Window mean, then the first and last frame's value of an end-to-end quantity."""
+    return (f"{_fmt(d.get(name + unit))}  (start {_fmt(d.get(name + '_start' + unit))}, "
+            f"end {_fmt(d.get(name + '_end' + unit))})")
 
 
 def _system_rows(d: dict) -> list[tuple[str, str]]:
     """One row per chain and per pair of a system of chains (:mod:`knotmm.analysis.chains`)."""
-    rows = []
-    for c in d.get("chains") or []:
-        speed = _fmt(c.get("sedimentation_velocity"), c.get("sedimentation_velocity_uncertainty"))
-        text = (f"{c['beads']} beads, {'ring' if c['closed'] else 'open'}; V {speed}"
-                f"; Rg {_fmt(c.get('radius_of_gyration'))}; knot {_fmt(c.get('knot_type_start'))}"
-                f"; tau_swirl {_fmt(c.get('tau_swirl'), c.get('tau_swirl_uncertainty'))}")
-        rows.append((f"chain {c['id']}", text))
+    rows = [(f"chain {c['id']}", _chain_text(c)) for c in d.get("chains") or []]
     system = d.get("system") or {}
     for pair in system.get("pairs", []):
         rows.append((f"chains {pair['chains']}", (
-            f"centres {_fmt(pair['distance_start'])} -> {_fmt(pair['distance_end'])} d apart; "
-            f"axes {_fmt(pair['axis_angle_start_deg'], digits=3)} -> "
+            f"centres {_fmt(pair['distance_start'])} -> {_fmt(pair['distance_end'])} d apart, "
+            f"{_fmt(pair.get('separation_angle_to_vertical_start_deg'), digits=3)} -> "
+            f"{_fmt(pair.get('separation_angle_to_vertical_end_deg'), digits=3)} deg from the "
+            f"vertical; axes {_fmt(pair['axis_angle_start_deg'], digits=3)} -> "
             f"{_fmt(pair['axis_angle_end_deg'], digits=3)} deg")))
     if system.get("linking_numbers"):
         start, end = system["linking_numbers"], system.get("linking_numbers_end") or {}
@@ -446,6 +497,26 @@ def _system_rows(d: dict) -> list[tuple[str, str]]:
             f" ({len(system['linking_number_changes'])} changes)"
             if system.get("linking_number_changes") else "")))
     return rows
+
+
+def _chain_text(c: dict) -> str:
+    """One chain of a system in a line: what it is, then what applies to it."""
+    speed = _fmt(c.get("sedimentation_velocity"), c.get("sedimentation_velocity_uncertainty"))
+    parts = [f"{c['beads']} beads, {'ring' if c['closed'] else 'open'}", f"V {speed}"]
+    if c["closed"]:
+        parts += [f"knot {_fmt(c.get('knot_type_start'))}", f"rho0 {_fmt(c.get('major_radius'))}",
+                  f"tau_sed {_fmt(c.get('tau_sed'))}"]
+    parts += [f"Rg {_fmt(c.get('radius_of_gyration'))}",
+              f"ACN {_fmt(c.get('average_crossing_number'))}"]
+    if c["closed"]:
+        parts += [f"tau_swirl {_fmt(c.get('tau_swirl'), c.get('tau_swirl_uncertainty'))}",
+                  f"tau_rot {_fmt(c.get('tau_rot'))}"]
+    else:
+        parts.append(f"end-to-end {_fmt(c.get('end_to_end_length'))} d at "
+                     f"{_fmt(c.get('end_to_end_angle_to_vertical_deg'), digits=3)} deg "
+                     "to the vertical")
+    parts.append(f"B {_fmt(c.get('elasto_gravitation_number'))}")
+    return "; ".join(parts)
 
 
 def format_table(result: AnalysisResult) -> str:

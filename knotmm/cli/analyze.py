@@ -20,8 +20,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "Analyse a saved run: finds the steady window (or use --from/--to), measures the "
             "sedimentation speed, major radius, the three time scales and their ratios, "
             "fits the vortex-knot formula to every bead, and reports writhe, handedness, "
-            "rotation sense and knot type. Writes analysis.json and PNG plots into the run "
-            "directory (model units: d, tau_d)."
+            "rotation sense and knot type. An open chain gets its speed, shape and end-to-end "
+            "vector (no knot type, no torus quantities); a run of several chains each chain's "
+            "observables and the system's (centre of mass, pairs, linking numbers; a link as "
+            "one object); every chain its elasto-gravitation number B = N^3 F0 l0 / A. What "
+            "does not apply is n/a with the reason. Writes analysis.json and PNG plots into "
+            "the run directory (model units: d, tau_d)."
         ),
     )
     parser.add_argument(

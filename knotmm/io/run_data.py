@@ -279,8 +279,15 @@ def _check_interval(value, what: str) -> float:
     return dt
 
 
-def _ring_notes(bonds: np.ndarray, n: int, top: Path) -> list[str]:
+def _ring_notes(bonds: np.ndarray, n: int, top: Path, layout=None) -> list[str]:
+    """What the topology's bonds lack of one ring, unless they are the chains run.toml's
+    ``[knotmm.layout]`` records (``layout``: an open chain has no closing bond)."""
     pairs = {tuple(sorted(map(int, b))) for b in bonds}
+    if isinstance(layout, dict) and pairs:
+        chains = ChainLayout.from_bonds(n, bonds)
+        if chains is not None and (list(chains.lengths), list(chains.closed)) == (
+                layout.get("lengths"), layout.get("closed")):
+            return []
     ring = {tuple(sorted(map(int, b))) for b in ChainLayout.ring(n).bonds()}
     missing = ring - pairs
     if not pairs:
@@ -415,7 +422,7 @@ def load_run(path, frame_interval: float | None = None, topology=None) -> RunDat
         positions = positions[:first_bad]
 
     bonds = np.array([[b[0].index, b[1].index] for b in top.bonds], dtype=int).reshape(-1, 2)
-    notes += _ring_notes(bonds, n_beads, top_path)
+    notes += _ring_notes(bonds, n_beads, top_path, config_value(config, "knotmm.layout"))
     if bonds.size == 0:
         bonds = ChainLayout.ring(n_beads).bonds()
 

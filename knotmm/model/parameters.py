@@ -7,11 +7,43 @@ study's values. :func:`knotmm.model.system.chain_system` and the force functions
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from knotmm.units import LJ_CUTOFF_FACTOR
 
-__all__ = ["ChainModel"]
+__all__ = ["ChainModel", "ELASTO_GRAVITATION_DEFINITION", "elasto_gravitation_number"]
+
+#: The elasto-gravitation number as knotmm states it (docs/model.md, "observables").
+ELASTO_GRAVITATION_DEFINITION = (
+    "B = N^3 F0 l0 / A: N the chain's beads, F0 the gravity force per bead, l0 the bond "
+    "length, A the bending stiffness per joint (0.12 N^3 with the study's values)"
+)
+
+
+def elasto_gravitation_number(n_beads: int, gravity: float, bond_length: float,
+                              bending_stiffness: float) -> float:
+    """``B = N^3 F0 l0 / A``: gravity against bending for a chain of ``n_beads`` beads.
+
+    The filament literature (Bukowicki and Ekiel-Jezewska 2019, and others) states its
+    regimes by this number; with the study's discrete bending (``A`` per joint, in F0 d)
+    and ``F0 = 1``, ``l0 = 0.6 d``, ``A = 5 F0 d`` it is ``0.12 N^3``.
+
+    Parameters
+    ----------
+    n_beads : int
+        N, the chain's beads.
+    gravity, bond_length, bending_stiffness : float
+        F0 (F0), l0 (d), A (F0 d).
+
+    Returns
+    -------
+    float
+        Dimensionless; ``inf`` for ``A = 0`` (no bending stiffness).
+    """
+    if bending_stiffness == 0:
+        return math.inf
+    return float(n_beads) ** 3 * float(gravity) * float(bond_length) / float(bending_stiffness)
 
 
 @dataclass(frozen=True)
@@ -54,6 +86,22 @@ class ChainModel:
     def steric_range(self) -> float:
         """Cutoff ``2**(1/6) sigma`` of the steric term, in d."""
         return LJ_CUTOFF_FACTOR * self.lj_sigma
+
+    def elasto_gravitation_number(self, n_beads: int) -> float:
+        """:func:`elasto_gravitation_number` of a chain of ``n_beads`` beads of this model."""
+        return elasto_gravitation_number(n_beads, self.gravity, self.bond_length,
+                                         self.bending_stiffness)
+
+    def elasto_gravitation_facts(self, lengths) -> dict:
+        """B of chains of ``lengths`` beads as run.toml's ``[knotmm]`` records it: one chain's
+        ``elasto_gravitation_number``, several chains' ``elasto_gravitation_numbers`` (in the
+        layout's order); nothing for ``A = 0`` (B infinite)."""
+        values = [self.elasto_gravitation_number(n) for n in lengths]
+        if not all(math.isfinite(v) for v in values):
+            return {}
+        if len(values) == 1:
+            return {"elasto_gravitation_number": values[0]}
+        return {"elasto_gravitation_numbers": values}
 
     @classmethod
     def from_config(cls, cfg) -> ChainModel:

@@ -64,7 +64,9 @@ def test_each_chain_gets_its_own_speed_and_the_system_its_centre_of_mass_speed()
     assert pair["chains"] == "A-B" and pair["distance_start"] == pytest.approx(6.0)
     assert pair["axis_angle_start_deg"] == pytest.approx(35.0)
     assert d["system"]["linking_numbers"] == {"A-B": 0}
-    assert d["tau_swirl"] is None and d["swirl_detected"] is False
+    # separate chains are no one structure: the system's swirl is n/a, with the reason
+    assert d["tau_swirl"] is None and d["swirl_detected"] is None
+    assert "separate chains" in d["not_applicable"]["tau_swirl"]
     assert "chain B" in result.summary() and "linking numbers" in result.summary()
 
 
