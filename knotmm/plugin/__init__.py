@@ -193,6 +193,39 @@ if _rpy is not None:
     except Exception as exc:  # noqa: BLE001 - any failure means: not usable
         _load_error = f"knotmm.plugin: registering the RPY kernels failed: {exc}"
         _rpy, _rebuild_needed = None, True
+#: OpenMM device platform -> the plugin's library that registers the integrator's kernel for it
+#: (the device backend of plugin/platforms/common over that platform's ComputeContext), built
+#: only where the platform's headers and library were found, beside the compiled module.
+_PLATFORM_LIBRARIES = {"OpenCL": "libKnotMMRPYPluginOpenCL.so", "CUDA": "libKnotMMRPYPluginCUDA.so"}
+
+
+def _load_platform_libraries(folder: Path) -> None:
+    """Load the device platforms' libraries in ``folder`` whose OpenMM platform is present.
+
+    ``openmm.Platform.loadPluginLibrary`` opens each and calls its ``registerKernelFactories()``;
+    a failure (or a library that registers nothing) is recorded in
+    :func:`platform_load_errors`, never raised.
+    """
+    present = {openmm.Platform.getPlatform(i).getName()
+               for i in range(openmm.Platform.getNumPlatforms())}
+    for platform, filename in _PLATFORM_LIBRARIES.items():
+        path = folder / filename
+        if platform not in present or not path.is_file():
+            continue
+        try:
+            openmm.Platform.loadPluginLibrary(str(path))
+            if not openmm.Platform.getPlatformByName(platform).supportsKernels([KERNEL_NAME]):
+                raise RuntimeError(f"it registered no {KERNEL_NAME} kernel")
+        except Exception as exc:  # noqa: BLE001 - recorded, the other platforms still work
+            _platform_load_errors[platform] = f"{path}: {exc}"
+            log.debug("knotmm.plugin: %s platform library not loaded: %s", platform, exc)
+
+
+if _rpy is not None:
+    try:
+        _load_platform_libraries(Path(_rpy.__file__).resolve().parent)
+    except Exception as exc:  # noqa: BLE001 - never fail the import over a device platform
+        _platform_load_errors["*"] = f"loading the device platforms' libraries failed: {exc}"
 if _rpy is not None:
     METHODS.update((str(name), (int(order), bool(adaptive), bool(stochastic)))
                    for name, order, adaptive, stochastic in _rpy.methodTable())

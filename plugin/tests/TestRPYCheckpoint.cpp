@@ -74,7 +74,7 @@ void checkMethod(const std::string& platform, const std::string& method) {
     KT_ASSERT(first.time == second.time && first.step == second.step);
     KT_ASSERT(first.accepted == second.accepted && first.rejected == second.rejected);
     KT_ASSERT(first.evaluations == second.evaluations);
-    std::printf("  %-9s %-20s bit-identical after the restart (t = %.6g, %lld accepted, %lld rejected)\n",
+    std::printf("  %-13s %-20s bit-identical after the restart (t = %.6g, %lld accepted, %lld rejected)\n",
                 platform.c_str(), method.c_str(), second.time, second.accepted, second.rejected);
     delete context;
 }

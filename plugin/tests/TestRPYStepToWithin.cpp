@@ -91,7 +91,7 @@ void checkMethod(const std::string& platform, const std::string& method) {
         KT_EXPECT_THROW("stepToWithin(0.9, bad budget)", [&] { parts->stepToWithin(0.9, budget); });
         KT_ASSERT(parts->getNumAcceptedSteps() == whole->getNumAcceptedSteps());
     }
-    std::printf("  %-9s %-9s %lld calls of one step each = one stepTo(0.3), bit for bit\n",
+    std::printf("  %-13s %-9s %lld calls of one step each = one stepTo(0.3), bit for bit\n",
                 platform.c_str(), method.c_str(), calls);
 }
 

@@ -105,51 +105,124 @@ inline void expectOpenMMException(const std::string& name, const std::function<v
     knotmm_test::expectOpenMMException(name, fn, knotmm_test::where(__FILE__, __LINE__))
 
 /**
- * Registers the RPY kernels; first loads OpenMM's CPU platform plugin from the wheel's plugin
- * directory (KNOTMM_TEST_OPENMM_PLUGIN_DIR, set by CMake), so that the kernel is registered
- * for CPU too (CPU must exist before registerRPYKernelFactories() runs). Returns whether the
- * CPU platform is available. Idempotent.
+ * Registers the RPY kernels; first loads OpenMM's CPU and OpenCL platform plugins from the
+ * wheel's plugin directory (KNOTMM_TEST_OPENMM_PLUGIN_DIR, set by CMake), so that the kernel
+ * is registered for CPU too (CPU must exist before registerRPYKernelFactories() runs), then
+ * the plugin's OpenCL library (KNOTMM_TEST_OPENCL_LIBRARY, when CMake built it), whose
+ * registerKernelFactories() OpenMM calls. Returns whether the CPU platform is available.
+ * Idempotent; openclStatus() says whether OpenCL can be tested.
  */
+inline std::string& openclSkipReason() {
+    static std::string reason = "not set up";
+    return reason;
+}
+
+inline bool havePlatform(const std::string& name) {
+    for (int i = 0; i < OpenMM::Platform::getNumPlatforms(); i++)
+        if (OpenMM::Platform::getPlatform(i).getName() == name)
+            return true;
+    return false;
+}
+
 inline bool setUpPlatforms() {
     static int cpu = -1;
     if (cpu >= 0)
         return cpu == 1;
     cpu = 0;
 #ifdef KNOTMM_TEST_OPENMM_PLUGIN_DIR
-    bool have = false;
-    for (int i = 0; i < OpenMM::Platform::getNumPlatforms(); i++)
-        have = have || OpenMM::Platform::getPlatform(i).getName() == "CPU";
-    if (!have) {
+    for (const char* name : {"CPU", "OpenCL"}) {
+        if (havePlatform(name))
+            continue;
         try {
-            OpenMM::Platform::loadPluginLibrary(std::string(KNOTMM_TEST_OPENMM_PLUGIN_DIR) + "/libOpenMMCPU.so");
+            OpenMM::Platform::loadPluginLibrary(std::string(KNOTMM_TEST_OPENMM_PLUGIN_DIR) + "/libOpenMM" + name + ".so");
         }
         catch (const std::exception& e) {
-            std::printf("  (CPU platform not loaded: %s)\n", e.what());
+            std::printf("  (%s platform not loaded: %s)\n", name, e.what());
         }
     }
 #endif
-    for (int i = 0; i < OpenMM::Platform::getNumPlatforms(); i++)
-        if (OpenMM::Platform::getPlatform(i).getName() == "CPU")
-            cpu = 1;
+    cpu = havePlatform("CPU") ? 1 : 0;
     registerRPYKernelFactories();
+    openclSkipReason() = "";
+#ifdef KNOTMM_TEST_OPENCL_LIBRARY
+    if (!havePlatform("OpenCL"))
+        openclSkipReason() = "OpenMM has no OpenCL platform here";
+    else {
+        try {
+            OpenMM::Platform::loadPluginLibrary(KNOTMM_TEST_OPENCL_LIBRARY);
+            OpenMM::Platform& platform = OpenMM::Platform::getPlatformByName("OpenCL");
+            if (!platform.supportsKernels({"IntegrateRPYStep"}))
+                openclSkipReason() = "the plugin's OpenCL library registered no kernel";
+            else {
+                // a device must be there: a one-particle Context with a Verlet integrator
+                OpenMM::System system;
+                system.addParticle(1.0);
+                OpenMM::VerletIntegrator verlet(0.001);
+                OpenMM::Context context(system, verlet, platform, {{"Precision", "double"}});
+            }
+        }
+        catch (const std::exception& e) {
+            openclSkipReason() = e.what();
+        }
+    }
+#else
+    openclSkipReason() = "the plugin's OpenCL library was not built (KNOTMM_OPENCL=OFF, or no CL/cl.h or "
+                         "libOpenMMOpenCL.so at configure time)";
+#endif
+    if (!openclSkipReason().empty())
+        std::printf("  (OpenCL not tested: %s)\n", openclSkipReason().c_str());
     return cpu == 1;
 }
 
-/** The platforms to run on: Reference always, CPU when it loaded. */
-inline std::vector<std::string> platformNames() {
+/**
+ * The platforms to run on: Reference always, CPU when it loaded, and OpenCL in double and in
+ * mixed precision ("OpenCL:double", "OpenCL:mixed") when its library loaded and it has a
+ * device (pocl on the build machine; each OpenCL Context costs ~0.1 s there). With
+ * `bothPrecisions` false, OpenCL in mixed precision only (what knotmm runs; for tests whose
+ * subject does not depend on the precision).
+ */
+inline std::vector<std::string> platformNames(bool bothPrecisions = true) {
     std::vector<std::string> names = {"Reference"};
     if (setUpPlatforms())
         names.push_back("CPU");
+    if (openclSkipReason().empty()) {
+        if (bothPrecisions)
+            names.push_back("OpenCL:double");
+        names.push_back("OpenCL:mixed");
+    }
     return names;
 }
 
-/** A Context on the named platform (CPU: one thread, so results do not depend on the machine). */
+/** True for a device platform (OpenCL, CUDA, HIP): forces in fixed point, kernels with fast math. */
+inline bool isDevice(const std::string& platformName) {
+    return platformName.compare(0, 6, "OpenCL") == 0 || platformName.compare(0, 4, "CUDA") == 0 ||
+           platformName.compare(0, 3, "HIP") == 0;
+}
+
+/**
+ * A tolerance for the platform: `host` on Reference and CPU, `device` on a device platform,
+ * whose forces reach the integrator as 64-bit fixed point (2^-32 ~ 2.3e-10 resolution) and
+ * whose kernels are compiled with FMA contraction: it agrees with the host to rounding, not
+ * bit for bit.
+ */
+inline double tolerance(const std::string& platformName, double host, double device) {
+    return isDevice(platformName) ? device : host;
+}
+
+/**
+ * A Context on the named platform (CPU: one thread, so results do not depend on the machine;
+ * "OpenCL:<precision>": the OpenCL platform in that precision).
+ */
 inline OpenMM::Context* makeContext(OpenMM::System& system, OpenMM::Integrator& integrator,
                                     const std::string& platformName) {
     setUpPlatforms();
-    OpenMM::Platform& platform = OpenMM::Platform::getPlatformByName(platformName);
-    if (platformName == "CPU")
+    const size_t colon = platformName.find(':');
+    const std::string name = platformName.substr(0, colon);
+    OpenMM::Platform& platform = OpenMM::Platform::getPlatformByName(name);
+    if (name == "CPU")
         return new OpenMM::Context(system, integrator, platform, {{"Threads", "1"}});
+    if (colon != std::string::npos)
+        return new OpenMM::Context(system, integrator, platform, {{"Precision", platformName.substr(colon + 1)}});
     return new OpenMM::Context(system, integrator, platform);
 }
 

@@ -6,7 +6,11 @@ finds the plugin's kernel, and is skipped with the reason where there is none. T
 are the naive model of ``tests/reference_model.py`` (forces and the RPY tensor as double loops)
 and knotmm's Python engine on the double-precision Reference platform (the numba mobility and
 the integrators of :mod:`knotmm.dynamics`): never the device backend itself. OpenMM compiles
-device kernels with fast-math flags, so agreement is to a tolerance, not bit for bit.
+device kernels with fast-math flags, so agreement is to a tolerance, not bit for bit. OpenMM's
+device platforms also store force-field parameters as float32 even in double precision (the
+bond length 0.6 d is 0.6000000238 there: a bond force 1.8e-7 F0 off), so "double" agrees with
+the Reference platform to about 1e-6 d over a few tau_d, not to rounding
+(``plugin/tests/TestRPYDevice.cpp`` compares with float-rounded parameters: 1e-9 d).
 """
 
 from __future__ import annotations
@@ -82,8 +86,8 @@ def test_velocity_is_the_naive_rpy_times_the_naive_forces(platform, precision, t
 
 @device
 @pytest.mark.parametrize(("system", "precision", "tolerance", "atol"), [
-    ("trefoil90", "double", 1e-4, 1e-7),
-    ("three_chains", "double", 1e-4, 1e-7),
+    ("trefoil90", "double", 1e-4, 5e-6),
+    ("three_chains", "double", 1e-4, 5e-6),
     ("trefoil90", "mixed", 1e-6, 1e-5),
 ])
 def test_rk23_follows_the_python_engine_over_four_tau_d(platform, system, precision,
@@ -112,8 +116,7 @@ def test_a_chain_far_from_the_origin_moves_as_one_at_the_origin(platform, precis
     times = [0.5, 1.0]
     want = reference_run(x, RK23(0.01), times)
     got = device_run(x + offset, RK23(0.01), times, platform, precision)
-    atol = 1e-7 if precision == "double" else 1e-5
-    np.testing.assert_allclose(got.positions - offset, want.positions, rtol=0, atol=atol)
+    np.testing.assert_allclose(got.positions - offset, want.positions, rtol=0, atol=1e-5)
 
 
 @device
@@ -124,7 +127,7 @@ def test_segment_midpoint_sites_follow_the_python_engine(platform):
     times = [0.5, 1.0]
     want = reference_run(x, RK23(0.01), times, LAYOUT, model)
     got = device_run(x, RK23(0.01), times, platform, "double", LAYOUT, model)
-    np.testing.assert_allclose(got.positions, want.positions, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(got.positions, want.positions, rtol=0, atol=5e-6)
     # the Context's sites sit at the midpoints of the layout's bonds
     everything = positions_of(got.context)
     sites = everything[x.shape[0]:]
@@ -146,12 +149,12 @@ def _brownian(platform, properties, x, steps, seed=11):
 @device
 def test_brownian_steps_agree_with_the_reference_platform_to_rounding(platform):
     """Euler-Maruyama, seed 11, 100 steps at kT = 1 F0 d: the noise is drawn from the same
-    counter of the same stream on every platform, so the paths agree to rounding (1e-9 d)."""
+    stream on every platform, so the paths agree but for the float32 parameters (1e-7 d)."""
     x = torus_knot(2, 3, 40)
     want = _brownian("Reference", {}, x, 100)
     got = _brownian(platform, {"Precision": "double"}, x, 100)
     assert np.abs(want - x).max() > 0.05  # the noise moved the beads
-    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-7)
 
 
 @device
@@ -162,4 +165,4 @@ def test_brownian_run_through_the_simulation_lands_on_its_frames(platform):
     assert np.isfinite(sim.positions).all()
     bonds = np.linalg.norm(np.diff(np.vstack([sim.positions, sim.positions[:1]]), axis=0),
                            axis=1)
-    assert 0.3 < bonds.min() and bonds.max() < 1.0
+    assert 0.3 < bonds.min() and bonds.max() < 1.5  # 1.016 on Reference too, for this seed

@@ -1,6 +1,7 @@
 #ifndef KNOTMM_RPY_MOBILITY_H_
 #define KNOTMM_RPY_MOBILITY_H_
 
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -100,6 +101,8 @@ const int LANCZOS_MAX_ITER = 200;
  */
 class LanczosSqrt {
 public:
+    /** w = M v for the symmetric positive definite M whose square root is wanted (dim numbers each). */
+    typedef std::function<void(const double* v, double* w)> MatrixTimes;
     /**
      * out = mu(x)^(1/2) z (SoA arrays of 3n numbers, as RPYMobility). Returns the iterations
      * (matrix-vector products) used; throws OpenMM::OpenMMException if min(maxIter, 3n)
@@ -107,6 +110,13 @@ public:
      */
     int compute(const RPYMobility& mobility, int n, const double* x, const double* z, double tolerance,
                 double* out, int maxIter = LANCZOS_MAX_ITER);
+    /**
+     * out = M^(1/2) z for vectors of `dim` numbers, M given by its products (`times`, in
+     * whatever layout z has: a device backend runs them on the device). The same iteration,
+     * stopping rule and faults as above, which calls this with RPYMobility::velocities.
+     */
+    int compute(const MatrixTimes& times, int dim, const double* z, double tolerance, double* out,
+                int maxIter = LANCZOS_MAX_ITER);
 private:
     std::vector<double> basis, alpha, beta, w, proj, values, vectors, coeff, coeffOld;
 };

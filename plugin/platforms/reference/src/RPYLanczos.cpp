@@ -53,7 +53,12 @@ bool KnotMM::tridiagonalEigen(const std::vector<double>& diag, const std::vector
 
 int LanczosSqrt::compute(const RPYMobility& mobility, int n, const double* x, const double* z, double tolerance,
                          double* out, int maxIter) {
-    const int dim = 3 * n;
+    return compute([&](const double* v, double* w) { mobility.velocities(n, x, v, w); }, 3 * n, z, tolerance,
+                   out, maxIter);
+}
+
+int LanczosSqrt::compute(const MatrixTimes& times, int dim, const double* z, double tolerance, double* out,
+                         int maxIter) {
     double normZ = 0.0;
     for (int i = 0; i < dim; i++)
         normZ += z[i] * z[i];
@@ -81,7 +86,7 @@ int LanczosSqrt::compute(const RPYMobility& mobility, int n, const double* x, co
     int used = 0;
     for (int k = 0; k < m && used == 0; k++) {
         const double* vk = &basis[(size_t) k * dim];
-        mobility.velocities(n, x, vk, w.data());
+        times(vk, w.data());
         double a = 0.0;
 #pragma omp simd reduction(+ : a)
         for (int i = 0; i < dim; i++)

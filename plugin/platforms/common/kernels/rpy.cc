@@ -1,0 +1,305 @@
+// Device kernels of CommonRPYBackend, in OpenMM's common kernel language (KERNEL, GLOBAL,
+// LOCAL, GLOBAL_ID, ...: compiled by ComputeContext::compileProgram for OpenCL, CUDA or HIP).
+//
+// Defined by the backend when it compiles this file:
+//   NUM_BEADS         beads (the System's particles that are not virtual sites)
+//   NUM_ATOMS         particles in the Context's arrays (posq, the force buffer)
+//   PADDED_NUM_ATOMS  the force buffer's stride between x, y and z
+//   TILE              work-group size of the pair loop (mobilityTimes)
+//   REDUCE_SIZE       work-group size of the one-group reductions (a power of two)
+// and by the platform: real4, USE_MIXED_PRECISION (posq float4 + a float4 correction).
+//
+// Vectors are 3 NUM_BEADS doubles, bead-major (x0, y0, z0, x1, ...). Context arrays are in
+// the Context's atom order: entry i holds particle atomIndex[i]; particleBead maps a
+// particle to its bead, or -1 for a virtual site.
+
+/** True when x is an infinity or a NaN, by its exponent bits (safe under fast-math flags). */
+inline DEVICE bool notFinite(double x) {
+    union {
+        double d;
+        mm_long l;
+    } u;
+    u.d = x;
+    return ((u.l >> 52) & 0x7ff) == 0x7ff;
+}
+
+/** y = the beads' positions in posq (+ posqCorrection in mixed precision). */
+KERNEL void readPositions(GLOBAL const real4* RESTRICT posq,
+#ifdef USE_MIXED_PRECISION
+        GLOBAL const real4* RESTRICT posqCorrection,
+#endif
+        GLOBAL const int* RESTRICT atomIndex, GLOBAL const int* RESTRICT particleBead, GLOBAL double* RESTRICT y) {
+    for (int i = GLOBAL_ID; i < NUM_ATOMS; i += GLOBAL_SIZE) {
+        const int b = particleBead[atomIndex[i]];
+        if (b < 0)
+            continue;
+        const real4 p = posq[i];
+#ifdef USE_MIXED_PRECISION
+        const real4 c = posqCorrection[i];
+        y[3*b] = (double) p.x + (double) c.x;
+        y[3*b+1] = (double) p.y + (double) c.y;
+        y[3*b+2] = (double) p.z + (double) c.z;
+#else
+        y[3*b] = p.x;
+        y[3*b+1] = p.y;
+        y[3*b+2] = p.z;
+#endif
+    }
+}
+
+/**
+ * posq (+ posqCorrection) of the beads = y - shift (shift: 3 doubles, the centre of mass or
+ * zeros); the charge (w) is kept. Mixed precision splits each number as OpenMM does: a float
+ * and the float of the remainder.
+ */
+KERNEL void writePositions(GLOBAL real4* RESTRICT posq,
+#ifdef USE_MIXED_PRECISION
+        GLOBAL real4* RESTRICT posqCorrection,
+#endif
+        GLOBAL const int* RESTRICT atomIndex, GLOBAL const int* RESTRICT particleBead, GLOBAL const double* RESTRICT y,
+        GLOBAL const double* RESTRICT shift) {
+    const double sx = shift[0], sy = shift[1], sz = shift[2];
+    for (int i = GLOBAL_ID; i < NUM_ATOMS; i += GLOBAL_SIZE) {
+        const int b = particleBead[atomIndex[i]];
+        if (b < 0)
+            continue;
+        const double px = y[3*b] - sx, py = y[3*b+1] - sy, pz = y[3*b+2] - sz;
+        real4 p = posq[i];
+        p.x = (real) px;
+        p.y = (real) py;
+        p.z = (real) pz;
+        posq[i] = p;
+#ifdef USE_MIXED_PRECISION
+        posqCorrection[i] = make_real4((real) (px - (double) p.x), (real) (py - (double) p.y), (real) (pz - (double) p.z), 0);
+#endif
+    }
+}
+
+/** com = the mean of the beads' positions (one work group of REDUCE_SIZE). */
+KERNEL void centreOfMass(GLOBAL const double* RESTRICT y, GLOBAL double* RESTRICT com) {
+    LOCAL double part[3*REDUCE_SIZE];
+    double sx = 0, sy = 0, sz = 0;
+    for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
+        sx += y[3*b];
+        sy += y[3*b+1];
+        sz += y[3*b+2];
+    }
+    part[LOCAL_ID] = sx;
+    part[REDUCE_SIZE+LOCAL_ID] = sy;
+    part[2*REDUCE_SIZE+LOCAL_ID] = sz;
+    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+        SYNC_THREADS;
+        if (LOCAL_ID < stride) {
+            part[LOCAL_ID] += part[LOCAL_ID+stride];
+            part[REDUCE_SIZE+LOCAL_ID] += part[REDUCE_SIZE+LOCAL_ID+stride];
+            part[2*REDUCE_SIZE+LOCAL_ID] += part[2*REDUCE_SIZE+LOCAL_ID+stride];
+        }
+    }
+    SYNC_THREADS;
+    if (LOCAL_ID == 0) {
+        com[0] = part[0]/NUM_BEADS;
+        com[1] = part[REDUCE_SIZE]/NUM_BEADS;
+        com[2] = part[2*REDUCE_SIZE]/NUM_BEADS;
+    }
+}
+
+/** f = the beads' forces from the 64-bit fixed-point force buffer (scale 2^-32). */
+KERNEL void readForces(GLOBAL const mm_long* RESTRICT force, GLOBAL const int* RESTRICT atomIndex,
+        GLOBAL const int* RESTRICT particleBead, GLOBAL double* RESTRICT f) {
+    const double scale = 1.0/4294967296.0;
+    for (int i = GLOBAL_ID; i < NUM_ATOMS; i += GLOBAL_SIZE) {
+        const int b = particleBead[atomIndex[i]];
+        if (b < 0)
+            continue;
+        f[3*b] = scale*(double) force[i];
+        f[3*b+1] = scale*(double) force[i+PADDED_NUM_ATOMS];
+        f[3*b+2] = scale*(double) force[i+2*PADDED_NUM_ATOMS];
+    }
+}
+
+/**
+ * v = mu(x) f with the overlap-corrected RPY mobility of beads of diameter d (mu0 the single
+ * bead's mobility): mu_ij / mu0 = a I + b rvec rvec^T for rvec = x_j - x_i, r = |rvec|,
+ *   r >= d: a = 3d/(8r) (1 + d^2/(6r^2)),  b = 3d/(8r) (1 - d^2/(2r^2)) / r^2,
+ *   r <  d: a = 1 - 9r/(16d),              b = 3/(16 d r),
+ *   r = 0 (the bead itself): a = 1, b = 0.
+ * One work item per bead i sums over all j; the beads j come through local memory in tiles of
+ * TILE (the work-group size).
+ */
+KERNEL void mobilityTimes(GLOBAL const double* RESTRICT x, GLOBAL const double* RESTRICT f, GLOBAL double* RESTRICT v,
+        double d, double mu0) {
+    LOCAL double tile[6*TILE];
+    const double invD = 1.0/d;
+    for (int base = GROUP_ID*TILE; base < NUM_BEADS; base += NUM_GROUPS*TILE) {
+        // every work item of the group runs the same loops (a bead past the end computes bead
+        // NUM_BEADS-1 again and writes nothing): no divergence around the barriers
+        const int i = base+LOCAL_ID;
+        const int row = (i < NUM_BEADS ? i : NUM_BEADS-1);
+        const double xi = x[3*row], yi = x[3*row+1], zi = x[3*row+2];
+        double ax = 0, ay = 0, az = 0;
+        for (int start = 0; start < NUM_BEADS; start += TILE) {
+            SYNC_THREADS;
+            const int j = start+LOCAL_ID;
+            if (j < NUM_BEADS) {
+                tile[6*LOCAL_ID] = x[3*j];
+                tile[6*LOCAL_ID+1] = x[3*j+1];
+                tile[6*LOCAL_ID+2] = x[3*j+2];
+                tile[6*LOCAL_ID+3] = f[3*j];
+                tile[6*LOCAL_ID+4] = f[3*j+1];
+                tile[6*LOCAL_ID+5] = f[3*j+2];
+            }
+            SYNC_THREADS;
+            const int count = (NUM_BEADS-start < TILE ? NUM_BEADS-start : TILE);
+            for (int k = 0; k < count; k++) {
+                const double r0 = tile[6*k]-xi, r1 = tile[6*k+1]-yi, r2 = tile[6*k+2]-zi;
+                const double fx = tile[6*k+3], fy = tile[6*k+4], fz = tile[6*k+5];
+                const double rr = r0*r0+r1*r1+r2*r2;
+                double a = 1, b = 0;
+                if (rr > 0) {
+                    const double inv = 1.0/sqrt(rr);
+                    const double r = rr*inv;
+                    if (r >= d) {
+                        const double s = d*inv, s2 = s*s;
+                        a = 0.375*s*(1.0+s2/6.0);
+                        b = 0.375*s*(1.0-0.5*s2)*(inv*inv);
+                    }
+                    else {
+                        a = 1.0-0.5625*r*invD;
+                        b = 0.1875*inv*invD;
+                    }
+                }
+                const double rf = b*(r0*fx+r1*fy+r2*fz);
+                ax += a*fx+rf*r0;
+                ay += a*fy+rf*r1;
+                az += a*fz+rf*r2;
+            }
+        }
+        if (i < NUM_BEADS) {
+            v[3*i] = mu0*ax;
+            v[3*i+1] = mu0*ay;
+            v[3*i+2] = mu0*az;
+        }
+    }
+}
+
+/** result[0] = sum of v_i^2 (one work group of REDUCE_SIZE). */
+KERNEL void sumSquares(GLOBAL const double* RESTRICT v, GLOBAL double* RESTRICT result) {
+    LOCAL double part[REDUCE_SIZE];
+    double s = 0;
+    for (int i = LOCAL_ID; i < 3*NUM_BEADS; i += LOCAL_SIZE)
+        s += v[i]*v[i];
+    part[LOCAL_ID] = s;
+    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+        SYNC_THREADS;
+        if (LOCAL_ID < stride)
+            part[LOCAL_ID] += part[LOCAL_ID+stride];
+    }
+    SYNC_THREADS;
+    if (LOCAL_ID == 0)
+        result[0] = part[0];
+}
+
+/**
+ * result[0] = max over beads of vx^2 + vy^2 + vz^2, result[1] = the number of beads for which
+ * that sum is not finite (one work group of REDUCE_SIZE).
+ */
+KERNEL void maxBeadSquare(GLOBAL const double* RESTRICT v, GLOBAL double* RESTRICT result) {
+    LOCAL double worst[REDUCE_SIZE];
+    LOCAL double bad[REDUCE_SIZE];
+    double w = 0, nb = 0;
+    for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
+        const double s = v[3*b]*v[3*b]+v[3*b+1]*v[3*b+1]+v[3*b+2]*v[3*b+2];
+        if (notFinite(s))
+            nb += 1;
+        else
+            w = (s > w ? s : w);
+    }
+    worst[LOCAL_ID] = w;
+    bad[LOCAL_ID] = nb;
+    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+        SYNC_THREADS;
+        if (LOCAL_ID < stride) {
+            worst[LOCAL_ID] = (worst[LOCAL_ID+stride] > worst[LOCAL_ID] ? worst[LOCAL_ID+stride] : worst[LOCAL_ID]);
+            bad[LOCAL_ID] += bad[LOCAL_ID+stride];
+        }
+    }
+    SYNC_THREADS;
+    if (LOCAL_ID == 0) {
+        result[0] = worst[0];
+        result[1] = bad[0];
+    }
+}
+
+/** result[0] = the smallest index i with v_i not finite, or 3 NUM_BEADS (one work group). */
+KERNEL void firstNonFinite(GLOBAL const double* RESTRICT v, GLOBAL int* RESTRICT result) {
+    LOCAL int first[REDUCE_SIZE];
+    int found = 3*NUM_BEADS;
+    for (int i = LOCAL_ID; i < 3*NUM_BEADS; i += LOCAL_SIZE)
+        if (notFinite(v[i]) && i < found)
+            found = i;
+    first[LOCAL_ID] = found;
+    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+        SYNC_THREADS;
+        if (LOCAL_ID < stride && first[LOCAL_ID+stride] < first[LOCAL_ID])
+            first[LOCAL_ID] = first[LOCAL_ID+stride];
+    }
+    SYNC_THREADS;
+    if (LOCAL_ID == 0)
+        result[0] = first[0];
+}
+
+/**
+ * result[0] = the number of i with a_i != b_i, both taken as the Context stores positions:
+ * in mixed precision a float and the float of the remainder (so a vector and its round trip
+ * through posq count as equal); in double precision (and in single, where the backend keeps
+ * the positions in double) the numbers themselves.
+ */
+KERNEL void countDifferent(GLOBAL const double* RESTRICT a, GLOBAL const double* RESTRICT b, GLOBAL int* RESTRICT result) {
+    LOCAL int count[REDUCE_SIZE];
+    int c = 0;
+    for (int i = LOCAL_ID; i < 3*NUM_BEADS; i += LOCAL_SIZE) {
+#ifdef USE_MIXED_PRECISION
+        const float ha = (float) a[i], hb = (float) b[i];
+        const float la = (float) (a[i]-(double) ha), lb = (float) (b[i]-(double) hb);
+        if (ha != hb || la != lb)
+            c++;
+#else
+        if (a[i] != b[i])
+            c++;
+#endif
+    }
+    count[LOCAL_ID] = c;
+    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+        SYNC_THREADS;
+        if (LOCAL_ID < stride)
+            count[LOCAL_ID] += count[LOCAL_ID+stride];
+    }
+    SYNC_THREADS;
+    if (LOCAL_ID == 0)
+        result[0] = count[0];
+}
+
+/**
+ * result[0] = the number of atoms whose posq entry differs from `saved` (a copy taken when
+ * the backend last wrote the positions): nonzero when the Context's positions were changed
+ * from outside since (single precision, where the backend keeps the positions in double).
+ */
+KERNEL void countChangedPositions(GLOBAL const real4* RESTRICT posq, GLOBAL const real4* RESTRICT saved,
+        GLOBAL int* RESTRICT result) {
+    LOCAL int count[REDUCE_SIZE];
+    int c = 0;
+    for (int i = LOCAL_ID; i < NUM_ATOMS; i += LOCAL_SIZE) {
+        const real4 a = posq[i], b = saved[i];
+        if (a.x != b.x || a.y != b.y || a.z != b.z || a.w != b.w)
+            c++;
+    }
+    count[LOCAL_ID] = c;
+    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+        SYNC_THREADS;
+        if (LOCAL_ID < stride)
+            count[LOCAL_ID] += count[LOCAL_ID+stride];
+    }
+    SYNC_THREADS;
+    if (LOCAL_ID == 0)
+        result[0] = count[0];
+}

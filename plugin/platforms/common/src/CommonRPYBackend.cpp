@@ -1,0 +1,398 @@
+#include "CommonRPYBackend.h"
+
+#include "CommonRPYKernelSources.h"
+#include "knotmm/RPYIntegrator.h"
+#include "knotmm/RPYStepFault.h"
+#include "knotmm/stepper/NoiseStream.h"
+#include "openmm/OpenMMException.h"
+#include "openmm/System.h"
+#include "openmm/common/ContextSelector.h"
+#include "openmm/internal/ContextImpl.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+using namespace OpenMM;
+using namespace KnotMM;
+using std::string;
+using std::vector;
+
+namespace {
+
+inline ComputeArray& data(StateVector& v) { return static_cast<CommonVector&>(v).a; }
+inline ComputeArray& data(const StateVector& v) {
+    // Kernels take arrays by non-const reference; the backend never writes an input.
+    return const_cast<ComputeArray&>(static_cast<const CommonVector&>(v).a);
+}
+
+} // namespace
+
+CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, const RPYIntegrator& integrator)
+    : cc(cc), diameter(integrator.getBeadDiameter()), mu0(integrator.getMobility()),
+      hostMobility(diameter, mu0, 1) {
+    if (!cc.getSupportsDoublePrecision())
+        throw OpenMMException("RPYIntegrator: this device has no double precision, which the RPY integrator "
+                              "needs (its state and sums are in double); use another device or the CPU platform");
+    mixed = cc.getUseMixedPrecision();
+    single = !mixed && !cc.getUseDoublePrecision();
+    numAtoms = cc.getNumAtoms();
+    vector<int> beadOf(system.getNumParticles(), -1);
+    for (int i = 0; i < system.getNumParticles(); i++) {
+        if (system.isVirtualSite(i))
+            hasVirtualSites = true;
+        else
+            beadOf[i] = n++;
+    }
+    tileSize = ComputeContext::TileSize;
+    reduceSize = 128;
+    while (reduceSize > 1 && reduceSize > cc.getMaxThreadBlockSize())
+        reduceSize /= 2;
+    particleBead.initialize<int>(cc, beadOf.size(), "rpyParticleBead");
+    particleBead.upload(beadOf);
+    com.initialize<double>(cc, 3, "rpyCentreOfMass");
+    scalars.initialize<double>(cc, 2, "rpyScalars");
+    counts.initialize<int>(cc, 1, "rpyCounts");
+    for (ComputeArray* a : {&forces, &noiseAt, &lanczosIn, &lanczosOut, &energyPosition})
+        a->initialize<double>(cc, 3 * n, "rpyVector");
+
+    defines["NUM_BEADS"] = cc.intToString(n);
+    defines["NUM_ATOMS"] = cc.intToString(numAtoms);
+    defines["PADDED_NUM_ATOMS"] = cc.intToString(cc.getPaddedNumAtoms());
+    defines["TILE"] = cc.intToString(tileSize);
+    defines["REDUCE_SIZE"] = cc.intToString(reduceSize);
+    ComputeProgram program = cc.compileProgram(CommonRPYKernelSources::rpy, defines);
+    readPositionsKernel = program->createKernel("readPositions");
+    writePositionsKernel = program->createKernel("writePositions");
+    centreOfMassKernel = program->createKernel("centreOfMass");
+    readForcesKernel = program->createKernel("readForces");
+    mobilityKernel = program->createKernel("mobilityTimes");
+    sumSquaresKernel = program->createKernel("sumSquares");
+    maxBeadSquareKernel = program->createKernel("maxBeadSquare");
+    firstNonFiniteKernel = program->createKernel("firstNonFinite");
+    countDifferentKernel = program->createKernel("countDifferent");
+    countChangedKernel = program->createKernel("countChangedPositions");
+    // the pair loop and the reductions run in work groups of exactly TILE and REDUCE_SIZE items
+    for (ComputeKernel* k : {&mobilityKernel, &sumSquaresKernel, &maxBeadSquareKernel, &firstNonFiniteKernel,
+                             &countDifferentKernel, &countChangedKernel, &centreOfMassKernel})
+        if ((*k)->getMaxBlockSize() < (k == &mobilityKernel ? tileSize : reduceSize))
+            throw OpenMMException("RPYIntegrator: the device runs kernel " + (*k)->getName() + " in work groups of at most " +
+                                  std::to_string((*k)->getMaxBlockSize()) + " items, fewer than it needs");
+
+    // Arguments that never change are set once; vectors are set at each call (setArg).
+    readPositionsKernel->addArg(cc.getPosq());
+    if (mixed)
+        readPositionsKernel->addArg(cc.getPosqCorrection());
+    readPositionsKernel->addArg(cc.getAtomIndexArray());
+    readPositionsKernel->addArg(particleBead);
+    readPositionsKernel->addArg(forces);  // y, set per call
+    writePositionsKernel->addArg(cc.getPosq());
+    if (mixed)
+        writePositionsKernel->addArg(cc.getPosqCorrection());
+    writePositionsKernel->addArg(cc.getAtomIndexArray());
+    writePositionsKernel->addArg(particleBead);
+    writePositionsKernel->addArg(forces);  // y, set per call
+    writePositionsKernel->addArg(com);
+    centreOfMassKernel->addArg(forces);  // y, set per call
+    centreOfMassKernel->addArg(com);
+    readForcesKernel->addArg(cc.getLongForceBuffer());
+    readForcesKernel->addArg(cc.getAtomIndexArray());
+    readForcesKernel->addArg(particleBead);
+    readForcesKernel->addArg(forces);
+    mobilityKernel->addArg(noiseAt);  // x, f, v: set per call
+    mobilityKernel->addArg(forces);
+    mobilityKernel->addArg(lanczosOut);
+    mobilityKernel->addArg(diameter);
+    mobilityKernel->addArg(mu0);
+    sumSquaresKernel->addArg(forces);  // set per call
+    sumSquaresKernel->addArg(scalars);
+    maxBeadSquareKernel->addArg(forces);  // set per call
+    maxBeadSquareKernel->addArg(scalars);
+    firstNonFiniteKernel->addArg(forces);  // set per call
+    firstNonFiniteKernel->addArg(counts);
+    countDifferentKernel->addArg(forces);  // a, b: set per call
+    countDifferentKernel->addArg(forces);
+    countDifferentKernel->addArg(counts);
+    if (single) {
+        shadow.initialize<double>(cc, 3 * n, "rpyShadowPositions");
+        writtenPosq.initialize(cc, cc.getPosq().getSize(), cc.getPosq().getElementSize(), "rpyWrittenPosq");
+        countChangedKernel->addArg(cc.getPosq());
+        countChangedKernel->addArg(writtenPosq);
+        countChangedKernel->addArg(counts);
+    }
+    applySettings(integrator);
+}
+
+VectorPtr CommonRPYBackend::createVector() {
+    CommonVector* v = new CommonVector();
+    v->a.initialize<double>(cc, 3 * n, "rpyStateVector");
+    cc.clearBuffer(v->a);
+    return VectorPtr(v);
+}
+
+void CommonRPYBackend::applySettings(const RPYIntegrator& integrator) {
+    lanczos = integrator.getNoiseMethod() == "lanczos";
+    lanczosTolerance = integrator.getLanczosTolerance();
+}
+
+// --- the Context -------------------------------------------------------------------------------
+
+void CommonRPYBackend::getPositions(ContextImpl&, StateVector& y) { readState(data(y)); }
+
+void CommonRPYBackend::readState(ComputeArray& y) {
+    if (single && haveShadow) {
+        // the positions in double, unless the Context's have been changed since they were written
+        countChangedKernel->execute(reduceSize, reduceSize);
+        int changed = 0;
+        counts.download(&changed);
+        if (changed == 0) {
+            shadow.copyTo(y);
+            return;
+        }
+        haveShadow = false;
+    }
+    readPositionsKernel->setArg(mixed ? 4 : 3, y);
+    readPositionsKernel->execute(numAtoms);
+}
+
+void CommonRPYBackend::writePositions(ComputeArray& y, bool shift) {
+    if (shift) {
+        centreOfMassKernel->setArg(0, y);
+        centreOfMassKernel->execute(reduceSize, reduceSize);
+    }
+    else
+        cc.clearBuffer(com);
+    writePositionsKernel->setArg(mixed ? 4 : 3, y);
+    writePositionsKernel->execute(numAtoms);
+    if (hasVirtualSites)
+        cc.getIntegrationUtilities().computeVirtualSites();
+    if (single && !shift) {
+        // the Context now holds floats of y: keep y, and what was written, to recognise it
+        // (a shifted write is scratch for a force evaluation; the comparison sees it too)
+        y.copyTo(shadow);
+        cc.getPosq().copyTo(writtenPosq);
+        haveShadow = true;
+    }
+}
+
+void CommonRPYBackend::setPositions(ContextImpl&, const StateVector& y) { writePositions(data(y), false); }
+
+void CommonRPYBackend::mobilityTimes(ComputeArray& x, ComputeArray& f, ComputeArray& out) {
+    mobilityKernel->setArg(0, x);
+    mobilityKernel->setArg(1, f);
+    mobilityKernel->setArg(2, out);
+    const int groups = std::max(1, std::min((n + tileSize - 1) / tileSize, cc.getNumThreadBlocks()));
+    mobilityKernel->execute(groups * tileSize, tileSize);
+}
+
+void CommonRPYBackend::velocity(ContextImpl& context, const StateVector& y, StateVector& v) {
+    writePositions(data(y), true);
+    context.calcForcesAndEnergy(true, false, context.getIntegrator().getIntegrationForceGroups());
+    readForcesKernel->execute(numAtoms);
+    // the mobility depends on differences only: y itself, not the shifted copy in the Context
+    mobilityTimes(data(y), forces, data(v));
+}
+
+void CommonRPYBackend::groupEnergies(ContextImpl& context, const vector<int>& groups, vector<double>& energies) {
+    // As the Reference backend: at the positions the steps evaluate forces at, one energy-only
+    // evaluation per group, then the Context's positions and forces exactly as they were.
+    ArrayInterface& posq = cc.getPosq();
+    ArrayInterface& force = cc.getLongForceBuffer();
+    if (!savedPosq.isInitialized()) {
+        savedPosq.initialize(cc, posq.getSize(), posq.getElementSize(), "rpySavedPosq");
+        savedForces.initialize(cc, force.getSize(), force.getElementSize(), "rpySavedForces");
+        if (mixed)
+            savedPosqCorrection.initialize(cc, cc.getPosqCorrection().getSize(),
+                                           cc.getPosqCorrection().getElementSize(), "rpySavedPosqCorrection");
+    }
+    posq.copyTo(savedPosq);
+    force.copyTo(savedForces);
+    if (mixed)
+        cc.getPosqCorrection().copyTo(savedPosqCorrection);
+    const int savedGroups = context.getLastForceGroups();
+    auto restore = [&]() {
+        savedPosq.copyTo(posq);
+        savedForces.copyTo(force);
+        if (mixed)
+            savedPosqCorrection.copyTo(cc.getPosqCorrection());
+        context.getLastForceGroups() = savedGroups;
+    };
+    energies.assign(groups.size(), 0.0);
+    try {
+        readState(energyPosition);
+        writePositions(energyPosition, true);
+        for (size_t i = 0; i < groups.size(); i++)
+            energies[i] = context.calcForcesAndEnergy(false, true, 1 << groups[i]);
+    }
+    catch (...) {
+        restore();
+        throw;
+    }
+    restore();
+}
+
+// --- noise -------------------------------------------------------------------------------------
+
+void CommonRPYBackend::factorNoise(const StateVector& y) {
+    if (lanczos) {
+        data(y).copyTo(noiseAt);  // matrix-free: applyNoise runs the Krylov iteration at noiseAt
+        return;
+    }
+    // exact: the dense Cholesky factor of the 3n x 3n mobility, on the host
+    data(y).download(host);
+    noiseAtHost.resize(3 * n);
+    for (int b = 0; b < n; b++)
+        for (int k = 0; k < 3; k++)
+            noiseAtHost[k * n + b] = host[3 * b + k];
+    hostMobility.lowerMatrix(n, noiseAtHost.data(), mat);
+    if (!choleskyLower(mat, 3 * n))
+        throw RPYStepFault(RPYStepFault::NotPositiveDefinite,
+                           "RPYIntegrator: the RPY mobility is not positive definite at these "
+                           "positions (two beads at the same point?)");
+}
+
+void CommonRPYBackend::applyNoise(double scale, const StateVector& z, StateVector& out) {
+    data(z).download(host);
+    hostOut.resize(3 * n);
+    if (!lanczos) {
+        lowerTimes(mat, 3 * n, host.data(), scale, hostOut.data());
+        data(out).upload(hostOut);
+        return;
+    }
+    // B z = mu^(1/2) z by Lanczos: the Krylov loop here, each product mu v on the device
+    lanczosSqrt.compute(
+        [&](const double* v, double* w) {
+            lanczosIn.upload(v);
+            mobilityTimes(noiseAt, lanczosIn, lanczosOut);
+            lanczosOut.download(w);
+        },
+        3 * n, host.data(), lanczosTolerance, hostOut.data());
+    for (double& x : hostOut)
+        x *= scale;
+    data(out).upload(hostOut);
+}
+
+void CommonRPYBackend::normals(NoiseStream& stream, StateVector& out) {
+    host.resize(3 * n);
+    for (double& x : host)
+        x = stream.normal();
+    data(out).upload(host);
+}
+
+// --- vector operations ---------------------------------------------------------------------------
+
+ComputeKernel& CommonRPYBackend::combineKernel(const string& pattern, int count) {
+    auto found = combineKernels.find(pattern);
+    if (found != combineKernels.end())
+        return found->second;
+    // out_i = t_0 + t_1 + ..., added left to right, t_k = c_k * v_k,i ('m') or v_k,i / c_k ('d')
+    std::stringstream src;
+    src << "KERNEL void combine(GLOBAL double* out";
+    for (int k = 0; k < count; k++)
+        src << ", GLOBAL const double* v" << k << ", double c" << k;
+    src << ") {\n    for (int i = GLOBAL_ID; i < SIZE; i += GLOBAL_SIZE) {\n";
+    for (int k = 0; k < count; k++) {
+        const string term = pattern[k] == 'd' ? "v" + std::to_string(k) + "[i]/c" + std::to_string(k)
+                                              : "c" + std::to_string(k) + "*v" + std::to_string(k) + "[i]";
+        src << (k == 0 ? "        double acc = " : "        acc = acc + ") << term << ";\n";
+    }
+    src << "        out[i] = acc;\n    }\n}\n";
+    std::map<string, string> combineDefines = {{"SIZE", cc.intToString(3 * n)}};
+    ComputeKernel kernel = cc.compileProgram(src.str(), combineDefines)->createKernel("combine");
+    kernel->addArg(forces);
+    for (int k = 0; k < count; k++) {
+        kernel->addArg(forces);
+        kernel->addArg(1.0);
+    }
+    return combineKernels[pattern] = kernel;
+}
+
+void CommonRPYBackend::combine(StateVector& out, std::initializer_list<Term> terms) {
+    const int count = (int) terms.size();
+    if (count < 1 || count > 8)
+        throw OpenMMException("CommonRPYBackend::combine: 1 to 8 terms");
+    string pattern;
+    for (const Term& t : terms)
+        pattern += t.divide ? 'd' : 'm';
+    ComputeKernel& kernel = combineKernel(pattern, count);
+    kernel->setArg(0, data(out));
+    int k = 0;
+    for (const Term& t : terms) {
+        kernel->setArg(1 + 2 * k, data(*t.v));
+        kernel->setArg(2 + 2 * k, t.c);
+        k++;
+    }
+    kernel->execute(3 * n);
+}
+
+void CommonRPYBackend::copy(StateVector& out, const StateVector& in) { data(in).copyTo(data(out)); }
+
+void CommonRPYBackend::setZero(StateVector& out) { cc.clearBuffer(data(out)); }
+
+bool CommonRPYBackend::equal(const StateVector& a, const StateVector& b) {
+    countDifferentKernel->setArg(0, data(a));
+    countDifferentKernel->setArg(1, data(b));
+    countDifferentKernel->execute(reduceSize, reduceSize);
+    int different = 0;
+    counts.download(&different);
+    return different == 0;
+}
+
+double CommonRPYBackend::norm(const StateVector& v) {
+    sumSquaresKernel->setArg(0, data(v));
+    sumSquaresKernel->execute(reduceSize, reduceSize);
+    double result[2];
+    scalars.download(result);
+    return std::sqrt(result[0]);
+}
+
+double CommonRPYBackend::maxBeadNorm(const StateVector& v) {
+    maxBeadSquareKernel->setArg(0, data(v));
+    maxBeadSquareKernel->execute(reduceSize, reduceSize);
+    double result[2];
+    scalars.download(result);
+    return result[1] == 0.0 ? std::sqrt(result[0]) : std::numeric_limits<double>::infinity();
+}
+
+int CommonRPYBackend::firstNonFinite(const StateVector& v) {
+    firstNonFiniteKernel->setArg(0, data(v));
+    firstNonFiniteKernel->execute(reduceSize, reduceSize);
+    int first = 0;
+    counts.download(&first);
+    return first < 3 * n ? first : -1;
+}
+
+void CommonRPYBackend::download(const StateVector& v, vector<double>& out) { data(v).download(out); }
+
+void CommonRPYBackend::upload(const vector<double>& in, StateVector& v) { data(v).upload(in); }
+
+// --- the kernel --------------------------------------------------------------------------------
+
+std::unique_ptr<RPYBackend> CommonIntegrateRPYStepKernel::createBackend(const System& system,
+                                                                        const RPYIntegrator& integrator) {
+    cc.initializeContexts();
+    ContextSelector selector(cc);
+    return std::unique_ptr<RPYBackend>(new CommonRPYBackend(cc, system, integrator));
+}
+
+double CommonIntegrateRPYStepKernel::execute(ContextImpl& context, RPYIntegrator& integrator, double targetTime) {
+    ContextSelector selector(cc);
+    return StepperKernel::execute(context, integrator, targetTime);
+}
+
+void CommonIntegrateRPYStepKernel::computeGroupEnergies(ContextImpl& context, const vector<int>& groups,
+                                                        vector<double>& energies) {
+    ContextSelector selector(cc);
+    StepperKernel::computeGroupEnergies(context, groups, energies);
+}
+
+void CommonIntegrateRPYStepKernel::createCheckpoint(std::ostream& stream) const {
+    ContextSelector selector(cc);
+    StepperKernel::createCheckpoint(stream);
+}
+
+void CommonIntegrateRPYStepKernel::loadCheckpoint(std::istream& stream) {
+    ContextSelector selector(cc);
+    StepperKernel::loadCheckpoint(stream);
+}
