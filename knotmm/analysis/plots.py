@@ -264,9 +264,15 @@ def plot_spectrum(result: AnalysisResult, ax=None):
             ax.axvline(peak.frequency, color=color, ls="--", lw=0.8)
     ax.set_ylim(1e-6, 3.0)
     ax.set_xlim(-f_max, f_max)
+    # no tick at the edges: the first one would sit on the corner's 10^-6
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=8, symmetric=True, prune="both"))
     ax.set_xlabel(axis_label("frequency") + " (> 0: counterclockwise seen from above)")
     ax.set_ylabel("power / peak power")
-    ax.legend(loc="lower center", fontsize="small", frameon=False)
+    # above the axes, never over the curves (the low-power tails fill the bottom)
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.01, 1.0, 0.1), mode="expand",
+              fontsize="small", frameon=False, borderaxespad=0.0)
     plain_ticks(ax)
     return ax
 
@@ -331,14 +337,9 @@ def plot_collapse(
             label=style["label"],
         )
     grid = np.linspace(0, max(1.0, x[rows].max()), 600)
-    ax.plot(grid, np.sin(2 * np.pi * grid), color=_COORD_STYLE["rho"]["color"], lw=1.2)
-    ax.plot(
-        grid,
-        np.cos(2 * np.pi * grid),
-        color="0.2",
-        lw=1.2,
-        label=r"$\sin$, $\cos(2\pi t/\tau_{swirl})$",
-    )
+    ax.plot(grid, np.sin(2 * np.pi * grid), color=_COORD_STYLE["rho"]["color"], lw=1.2,
+            label="formula: sin")
+    ax.plot(grid, np.cos(2 * np.pi * grid), color="0.2", lw=1.2, label="formula: cos")
     q_text = f"{fit.q}" if result.q is not None else f"{fit.q} (detected)"
     ax.set_title(
         f"T({fit.p},{q_text}): $\\rho_0$ = {fit.rho0:.3g} d, C = {fit.swirl_amplitude:.3g} d, "
@@ -348,7 +349,9 @@ def plot_collapse(
     ax.set_xlabel(r"$(t - t_0)/\tau_{swirl} + \phi_i/2\pi$")
     ax.set_ylabel("scaled coordinate")
     ax.set_ylim(-1.8, 1.8)
-    ax.legend(loc="upper right", fontsize="x-small", frameon=False, ncol=2)
+    # beside the axes: the markers fill the whole box
+    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="small",
+              frameon=False, borderaxespad=0.0)
     return ax
 
 

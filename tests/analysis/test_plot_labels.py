@@ -131,3 +131,46 @@ def test_ensemble_plot_mean_and_standard_error_without_offset(tmp_path):
     segments = [c for c in ax.collections if hasattr(c, "get_segments")]
     lengths = [s[1][1] - s[0][1] for c in segments for s in c.get_segments()]
     assert any(abs(length - 2 * sem) < 1e-9 for length in lengths)
+
+
+@pytest.fixture(scope="module")
+def vortex_result(tmp_path_factory):
+    """A synthetic swirling T(2,3) (tau_swirl 20, tau_rot 400 tau_d), analysed: a fit."""
+    import numpy as np
+    from synthetic import vortex_knot_positions, write_run_directory
+
+    from knotmm.analysis import analyze_run
+
+    times = np.arange(0.0, 400.0, 0.5)
+    directory = write_run_directory(tmp_path_factory.mktemp("vortex") / "run",
+                                    vortex_knot_positions(times), 0.5,
+                                    {"knot": {"p": 2, "q": 3, "beads": 90}})
+    result = analyze_run(directory, plots=False, knot_samples=0)
+    assert result.fit is not None
+    return result
+
+
+@pytest.mark.parametrize("name", ["spectrum", "collapse"])
+def test_the_legend_stays_off_the_curves_and_no_texts_overlap(vortex_result, name):
+    """Issue 35: the spectrum's legend sat over its curves and the collapse legend was
+    x-small stacked text with one curve unlabelled. As ``save_plots`` draws them (8 x 4.5
+    inches, 150 dpi): the legend lies outside the data area, every line has an entry, no two
+    texts overlap, the smallest text is at least 16 px (8 pt at 150 dpi)."""
+    from drawn_text import overlapping_texts, smallest_text_px
+
+    from knotmm.analysis.plots import plot_collapse, plot_spectrum
+
+    fig = Figure(figsize=(8, 4.5), layout="constrained", dpi=150)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    (plot_spectrum if name == "spectrum" else plot_collapse)(vortex_result, ax=ax)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    legend = ax.get_legend().get_window_extent(renderer)
+    assert not legend.overlaps(ax.get_window_extent(renderer)), name
+    labelled = {t.get_text() for t in ax.get_legend().get_texts()}
+    # every curve (not the vertical peak markers) has its legend entry
+    lines = [ln for ln in ax.get_lines() if len(set(map(float, ln.get_xdata()))) > 1]
+    assert all(ln.get_label() in labelled for ln in lines), [ln.get_label() for ln in lines]
+    assert overlapping_texts(fig) == []
+    assert smallest_text_px(fig) >= 16.0
