@@ -178,24 +178,31 @@ def test_resume_with_a_truncated_trajectory_says_so(tmp_path, reference, capsys)
     assert len(err) == 1 and "frames" in err[0]
 
 
-def test_brownian_default_kill_and_resume_equals_uninterrupted(tmp_path):
-    """Finite Pe with the defaults (ito_heun_adaptive: step control, queued Wiener increments,
-    the noise stream, all in the checkpoint): killed with SIGKILL and resumed, every frame and
-    every observables row equals the uninterrupted run's."""
-    settings = {**SETTINGS, "run": {**SETTINGS["run"], "peclet": 1.0}}
+def _killed_resumed_and_reference(tmp_path, settings: dict, edit) -> tuple:
+    """Run ``settings`` through once; start the same run from a run file (``edit``: its text
+    changed to match ``settings``), SIGKILL it after its third checkpoint and resume it.
+    Returns (resumed directory, its frames and rows, the reference's frames and rows)."""
     reference = tmp_path / "reference"
     run(RunConfig.from_dict(settings), directory=reference, progress=False)
     directory = tmp_path / "run"
     run_file = _write_run_file(tmp_path / "run.toml", directory)
-    run_file.write_text(run_file.read_text().replace("[run]\n", "[run]\npeclet = 1.0\n"))
+    run_file.write_text(edit(run_file.read_text()))
     proc = _start_run(run_file, directory, 3, subprocess.DEVNULL)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     if proc.returncode == 0:
         pytest.skip("the run finished before it could be killed")
     assert main(["run", "--resume", str(directory), "--no-progress"]) == 0
-    traj, rows = _load(directory)
-    ref_traj, ref_rows = _load(reference)
+    return (directory, *_load(directory), *_load(reference))
+
+
+def test_brownian_default_kill_and_resume_equals_uninterrupted(tmp_path):
+    """Finite Pe with the defaults (ito_heun_adaptive: step control, queued Wiener increments,
+    the noise stream, all in the checkpoint): killed with SIGKILL and resumed, every frame and
+    every observables row equals the uninterrupted run's."""
+    settings = {**SETTINGS, "run": {**SETTINGS["run"], "peclet": 1.0}}
+    _, traj, rows, ref_traj, ref_rows = _killed_resumed_and_reference(
+        tmp_path, settings, lambda text: text.replace("[run]\n", "[run]\npeclet = 1.0\n"))
     assert traj.n_frames == ref_traj.n_frames == 25
     np.testing.assert_array_equal(traj.xyz, ref_traj.xyz)
     assert rows == ref_rows
@@ -217,21 +224,10 @@ def test_kill_and_resume_on_a_device_platform_equals_uninterrupted(tmp_path, pla
     device backend's whole state)."""
     settings = {**SETTINGS, "run": {**SETTINGS["run"], "duration": 6.0, "platform": platform,
                                     "engine": "plugin"}}
-    reference = tmp_path / "reference"
-    run(RunConfig.from_dict(settings), directory=reference, progress=False)
-    directory = tmp_path / "run"
-    run_file = _write_run_file(tmp_path / "run.toml", directory)
-    run_file.write_text(run_file.read_text().replace(
-        "duration = 12.0\n", f'duration = 6.0\nplatform = "{platform}"\nengine = "plugin"\n'))
-    proc = _start_run(run_file, directory, 3, subprocess.DEVNULL)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    if proc.returncode == 0:
-        pytest.skip("the run finished before it could be killed")
-    assert main(["run", "--resume", str(directory), "--no-progress"]) == 0
+    directory, traj, rows, ref_traj, ref_rows = _killed_resumed_and_reference(
+        tmp_path, settings, lambda text: text.replace(
+            "duration = 12.0\n", f'duration = 6.0\nplatform = "{platform}"\nengine = "plugin"\n'))
     assert f'platform = "{platform}"' in (directory / "run.toml").read_text()
-    traj, rows = _load(directory)
-    ref_traj, ref_rows = _load(reference)
     assert traj.n_frames == ref_traj.n_frames == 13
     np.testing.assert_array_equal(traj.xyz, ref_traj.xyz)
     assert rows == ref_rows
