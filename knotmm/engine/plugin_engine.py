@@ -97,23 +97,16 @@ class PluginEngine(Engine):
     def stiffness(self, sim) -> float:
         """The plugin rkc2's spectral-radius estimate at ``sim``'s positions, in 1/tau_d.
 
-        A throwaway Context with a plugin copy of a
-        :class:`knotmm.dynamics.deterministic.RKC2` (the run's first step) takes one step
-        from the positions; the estimate is made at the step's start (a rejected try makes
-        it again there). No numba kernel is loaded.
+        Asked of the run's own Context (``RPYIntegrator.estimateSpectralRadius``: rkc2's
+        power iteration from its start vector, as a fresh rkc2 makes it before its first
+        step; no step, nothing else changed, no second Context). No numba kernel is loaded.
         """
-        from knotmm.dynamics.deterministic import RKC2
-        from knotmm.plugin import from_python_integrator
-
-        probe = from_python_integrator(RKC2(self.integrator.timestep),
-                                       threads=self.rpy.getNumThreads())
-        context = openmm.Context(sim.system, probe, sim.context.getPlatform())
-        context.setPositions(sim.context.getState(getPositions=True).getPositions())
+        sim.sync_context()
         try:
-            probe.step(1)
+            rho = float(self.rpy.estimateSpectralRadius())
         except openmm.OpenMMException as exc:  # the run itself reports a start it cannot step
-            log.info("stiffness probe: its step failed (%s)", " ".join(str(exc).split()))
-        rho = float(probe.getSpectralRadius())  # made at the step's start, before any try
+            log.info("stiffness probe failed (%s)", " ".join(str(exc).split()))
+            return math.inf
         return rho if math.isfinite(rho) else math.inf
 
     # -- reading the Context ------------------------------------------------------------

@@ -180,10 +180,12 @@ if _rpy is not None:
         )
         _rpy, _rebuild_needed = None, True
     elif not (all(hasattr(_rpy, name) for name in ("methodTable", "StepFault"))
-              and hasattr(_rpy.RPYIntegrator, "stepToWithin")):
+              and hasattr(_rpy.RPYIntegrator, "stepToWithin")
+              and hasattr(_rpy.RPYIntegrator, "estimateSpectralRadius")):
         _load_error = (
             "knotmm.plugin: the compiled plugin is older than knotmm's Python files (no "
-            f"methodTable, StepFault or RPYIntegrator.stepToWithin); rebuild it: "
+            "methodTable, StepFault, RPYIntegrator.stepToWithin or "
+            f"estimateSpectralRadius); rebuild it: "
             f"{REBUILD_COMMAND}"
         )
         _rpy, _rebuild_needed = None, True

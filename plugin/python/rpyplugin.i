@@ -278,6 +278,7 @@ public:
     long long getNumRejectedSteps() const;
     int getLastStages() const;
     double getSpectralRadius() const;
+    double estimateSpectralRadius();
 %extend {
     // As OpenMM's plugins: the RPYIntegrator behind a base-class reference (what
     // XmlSerializer and CompoundIntegrator hand back), and whether there is one.

@@ -178,3 +178,34 @@ def test_from_python_integrator(chain):
     assert brownian.getMethod() == "ito_heun"
     assert brownian.getThermalEnergy() == 0.25
     assert brownian.getRandomNumberSeed() == 4
+
+
+def test_estimate_spectral_radius_changes_nothing_and_matches_the_python_power_iteration():
+    """``RPYIntegrator.estimateSpectralRadius`` on an rk23 Context (the run's, as ``auto``
+    asks it): the number a fresh rkc2 makes before its first try (one taken small enough to
+    be accepted, so no rejection re-estimates it), within 10 % of knotmm's Python power
+    iteration (its own start vector), and no trace: positions, counters and the next steps
+    are those of a Context never asked."""
+    from knotmm.model.system import ChainModel
+
+    x = torus_knot(2, 3, 40)
+    model = ChainModel(bending_stiffness=50.0)
+    asked = RPYIntegrator(0.01, "rk23")
+    ctx = plugin_context(build_system(x, model), x, asked)
+    rho = asked.estimateSpectralRadius()
+    assert np.array_equal(positions_of(ctx), x)
+    assert asked.getNumForceEvaluations() == 0 and asked.getNumAcceptedSteps() == 0
+    probe = RPYIntegrator(1e-6, "rkc2")
+    probe_ctx = plugin_context(build_system(x, model), x, probe)
+    probe.step(1)
+    assert probe.getNumRejectedSteps() == 0
+    assert rho == probe.getSpectralRadius()
+    del probe_ctx
+    python = Simulation(x, model=model, integrator=RK23(0.01), platform="Reference").stiffness()
+    assert rho == pytest.approx(python, rel=0.1)
+    asked.stepTo(1.0)
+    plain = RPYIntegrator(0.01, "rk23")
+    ctx2 = plugin_context(build_system(x, model), x, plain)
+    plain.stepTo(1.0)
+    np.testing.assert_array_equal(positions_of(ctx), positions_of(ctx2))
+    assert asked.getNumForceEvaluations() == plain.getNumForceEvaluations()

@@ -211,14 +211,13 @@ def contexts(monkeypatch):
 
 @pytest.mark.parametrize(("engine", "bending", "integrator", "made"), [
     ("python", 5.0, "rk23", 1), ("python", 50.0, "rkc2", 1),  # rkc2 was 2: a second Simulation
-    ("plugin", 5.0, "rk23", 2), ("plugin", 50.0, "rkc2", 3),
+    ("plugin", 5.0, "rk23", 1), ("plugin", 50.0, "rkc2", 2),  # were 2 and 3: a probe Context
 ])
 def test_contexts_made_per_run(tmp_path, contexts, engine, bending, integrator, made):
     """``run.integrator = "auto"`` at Pe = inf: the stiffness is probed once on the run's
-    Simulation. The Python engine takes rkc2 in place, on the same Context. The plugin's
-    probe steps its own rkc2 in a throwaway Context (the plugin has no estimate without a
-    step), and its integrator lives in the Context, so taking rkc2 builds the Simulation
-    again."""
+    Simulation. The Python engine takes rkc2 in place, on the same Context. The plugin asks
+    its own Context (``RPYIntegrator.estimateSpectralRadius``); its integrator lives in the
+    Context, so taking rkc2 builds the Simulation again."""
     import knotmm.plugin
     from knotmm.config import load_run_file
     from knotmm.workflow import run

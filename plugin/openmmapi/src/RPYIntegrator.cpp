@@ -239,6 +239,11 @@ int RPYIntegrator::getLastStages() const {
     return kernel.getAs<IntegrateRPYStepKernel>().getLastStages();
 }
 
+double RPYIntegrator::estimateSpectralRadius() {
+    checkInitialized();
+    return kernel.getAs<IntegrateRPYStepKernel>().estimateSpectralRadius(*context, *this);
+}
+
 double RPYIntegrator::getSpectralRadius() const {
     checkInitialized();
     return kernel.getAs<IntegrateRPYStepKernel>().getSpectralRadius();

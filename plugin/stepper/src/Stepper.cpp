@@ -26,6 +26,32 @@ void Stepper::invalidateCache() {
     rkc2.forgetSpectralRadius();  // as knotmm's RKC2.reset(): estimate again after outside changes
 }
 
+double Stepper::estimateSpectralRadius(ContextImpl& context, RPYIntegrator& integrator) {
+    // A fresh RKC2Control (its start vector, no earlier estimate), at the Context's
+    // positions; the counters, the cached velocity and the Context's positions are restored.
+    RPYBackend& b = work.backend;
+    work.context = &context;
+    work.integrator = &integrator;
+    b.applySettings(integrator);
+    const StepCounts counted = work.counts;
+    b.getPositions(context, *work.y);
+    RKC2Control probe(b, integrator.getSpectralRadiusStartVector());
+    VectorPtr f0 = b.createVector();
+    double rho;
+    try {
+        work.velocity(*work.y, *f0);
+        rho = probe.estimate(work, *f0);
+    }
+    catch (...) {
+        b.setPositions(context, *work.y);
+        work.counts = counted;
+        throw;
+    }
+    b.setPositions(context, *work.y);
+    work.counts = counted;
+    return rho;
+}
+
 double Stepper::step(ContextImpl& context, RPYIntegrator& integrator, double targetTime) {
     RPYBackend& b = work.backend;
     work.context = &context;

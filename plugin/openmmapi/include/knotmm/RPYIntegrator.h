@@ -119,6 +119,13 @@ public:
     /** rkc2: stages of the last accepted step and the current spectral-radius estimate. */
     int getLastStages() const;
     double getSpectralRadius() const;
+    /**
+     * The spectral radius of the velocity's Jacobian at the Context's positions, in 1/ps, as
+     * rkc2 estimates it before its first step (power iteration from its start vector), for
+     * any method; no step is taken and nothing else changes (knotmm's `auto` choice asks it
+     * of the run's own Context).
+     */
+    double estimateSpectralRadius();
 
 protected:
     void initialize(OpenMM::ContextImpl& context) override;

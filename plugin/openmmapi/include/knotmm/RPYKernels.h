@@ -49,6 +49,13 @@ public:
     virtual long long getNumRejectedSteps() const = 0;
     virtual int getLastStages() const = 0;
     virtual double getSpectralRadius() const = 0;
+    /**
+     * The spectral radius of the velocity's Jacobian at the context's positions (1/ps), by
+     * rkc2's power iteration from its start vector, as a fresh rkc2 would make it before its
+     * first step. Leaves the context's positions, the counters and every part of the
+     * kernel's state as they were.
+     */
+    virtual double estimateSpectralRadius(OpenMM::ContextImpl& context, RPYIntegrator& integrator) = 0;
 };
 
 } // namespace KnotMM

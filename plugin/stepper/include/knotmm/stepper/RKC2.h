@@ -31,6 +31,8 @@ public:
     /** Estimate the spectral radius again before the next step. */
     void forgetSpectralRadius() { haveRho = false; }
     double spectralRadiusEstimate() const { return haveRho ? rho : 0.0; }
+    /** The power iteration's estimate at work.y, where the velocity is f0 (the state kept). */
+    double estimate(StepWork& work, const StateVector& f0) { return spectralRadius(work, f0); }
 
     // checkpointed state
     double rho = 0.0, errOld = 0.0, hOld = 0.0;

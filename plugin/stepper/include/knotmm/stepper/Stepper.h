@@ -34,6 +34,8 @@ public:
     const StepCounts& counts() const { return work.counts; }
     int lastStages() const { return rkc2.lastStages; }
     double spectralRadius() const { return rkc2.spectralRadiusEstimate(); }
+    /** RPYIntegrator::estimateSpectralRadius: a fresh rkc2's estimate, nothing changed. */
+    double estimateSpectralRadius(OpenMM::ContextImpl& context, RPYIntegrator& integrator);
 
 private:
     StepWork work;

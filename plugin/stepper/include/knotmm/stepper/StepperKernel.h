@@ -27,6 +27,9 @@ public:
     long long getNumRejectedSteps() const override { return stepper->counts().rejected; }
     int getLastStages() const override { return stepper->lastStages(); }
     double getSpectralRadius() const override { return stepper->spectralRadius(); }
+    double estimateSpectralRadius(OpenMM::ContextImpl& context, RPYIntegrator& integrator) override {
+        return stepper->estimateSpectralRadius(context, integrator);
+    }
 
 protected:
     /** The platform's backend for `system` (checked already: not periodic, no constraints). */
