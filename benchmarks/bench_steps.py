@@ -430,7 +430,8 @@ def _rings(n: int, per_ring: int = 100):
     k = n // per_ring
     side = int(np.ceil(np.sqrt(k)))
     ring = harness.template(per_ring)
-    x = np.vstack([ring + [8.0 * (i % side), 8.0 * (i // side), 0.0] for i in range(k)])
+    gap = 2.0 * np.abs(ring[:, :2]).max() + 2.0  # the rings' width and 2 d between them
+    x = np.vstack([ring + [gap * (i % side), gap * (i // side), 0.0] for i in range(k)])
     return x, ChainLayout((per_ring,) * k, (True,) * k)
 
 
