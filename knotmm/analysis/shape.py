@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from knotmm.analysis.bootstrap import block_bootstrap_mean
+from knotmm.io.rundir import SHAPE_FILE  # the run directory owns its file names
 from knotmm.knots.writhe import average_crossing_number, segment_pair_gauss, writhe
 
 __all__ = [
@@ -50,8 +51,6 @@ SHAPE_SERIES = (
     "average_crossing_number",
     "writhe",
 )
-#: The CSV of the series over the window, beside analysis.json.
-SHAPE_FILE = "analysis_shape.csv"
 #: Most frames whose ACN and writhe are computed (O(N^2) each); evenly spaced beyond it.
 GAUSS_MAX_FRAMES = 2000
 #: Template kinds that are open filaments unless ``knot.closed`` says otherwise.

@@ -110,7 +110,7 @@ def execute(args) -> int:
     from knotmm.analysis import analyze_run, format_table
     from knotmm.analysis.core import ANALYSIS_FILE
     from knotmm.analysis.replicas import is_sweep_directory
-    from knotmm.io.rundir import OutputError, WriteFault
+    from knotmm.io.rundir import SHAPE_FILE, OutputError, WriteFault
 
     if is_sweep_directory(args.run):
         return _execute_sweep(args)
@@ -131,7 +131,8 @@ def execute(args) -> int:
         raise WriteFault(f"{exc}; the files written before it are kept") from None
     print(format_table(result))
     out = args.out or (result.data.directory if result.data else ".")
-    files = [ANALYSIS_FILE, *result.plots]
+    shape = [SHAPE_FILE] if result.shape is not None else []
+    files = [ANALYSIS_FILE, *shape, *result.plots]
     print(f"wrote {', '.join(files)} in {out}")
     return 0
 

@@ -36,6 +36,7 @@ from knotmm.io.atomic import remove_temporaries
 
 __all__ = [
     "ANALYSIS_FILE",
+    "SHAPE_FILE",
     "ANALYSIS_RUNNING_KEY",
     "CHECKPOINT_FILE",
     "LOCK_FILE",
@@ -82,6 +83,8 @@ OBSERVABLES_FILE = "observables.csv"
 CHECKPOINT_FILE = "checkpoint.npz"
 #: The analysis of the run.
 ANALYSIS_FILE = "analysis.json"
+#: The analysis's per-frame shape series (Rg, asphericity, ACN, writhe), beside it.
+SHAPE_FILE = "analysis_shape.csv"
 #: VMD script loading the topology and the trajectory.
 VMD_FILE = "view.vmd"
 #: Held locked (``flock``) by the process writing the directory; holds its process id.
@@ -96,6 +99,7 @@ RUN_FILES = (
     VMD_FILE,
     CHECKPOINT_FILE,
     ANALYSIS_FILE,
+    SHAPE_FILE,
 )
 
 #: ``[knotmm] status`` values: a process is writing the run (or was killed doing so).
@@ -503,7 +507,8 @@ ANALYSIS_RUNNING_KEY = "run_still_running"
 
 
 def retire_stale_analysis(directory) -> bool:
-    """Remove ``directory``'s :data:`ANALYSIS_FILE` if it does not describe the run as it ended.
+    """Remove ``directory``'s :data:`ANALYSIS_FILE` (and its :data:`SHAPE_FILE`) if it does not
+    describe the run as it ended.
 
     A run calls this when it records its final status (finished, interrupted or fault),
     while it still holds its lock. The analysis is stale when ``knotmm analyze`` made it
@@ -537,6 +542,10 @@ def retire_stale_analysis(directory) -> bool:
         path.unlink()
     except OSError:
         return False
+    try:  # the shape series of the same analysis goes with it
+        (directory / SHAPE_FILE).unlink()
+    except OSError:
+        pass
     logging.getLogger(__name__).info(
         "removed %s: it was made before the run's last frame; run knotmm analyze again", path)
     return True

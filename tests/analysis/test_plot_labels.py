@@ -174,3 +174,15 @@ def test_the_legend_stays_off_the_curves_and_no_texts_overlap(vortex_result, nam
     assert all(ln.get_label() in labelled for ln in lines), [ln.get_label() for ln in lines]
     assert overlapping_texts(fig) == []
     assert smallest_text_px(fig) >= 16.0
+
+
+def test_the_wrote_line_names_every_file_written_the_shape_series_too(no_swirl_run, capsys):
+    """Issue 35: ``analysis_shape.csv`` was written but not named in the "wrote" line."""
+    capsys.readouterr()
+    assert main(["analyze", str(no_swirl_run), "--knot-samples", "0"]) == 0
+    wrote = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("wrote ")]
+    assert len(wrote) == 1
+    named = wrote[0].removeprefix("wrote ").rsplit(" in ", 1)[0].split(", ")
+    assert "analysis.json" in named and "analysis_shape.csv" in named
+    for name in named:
+        assert (no_swirl_run / name).stat().st_size > 0, name

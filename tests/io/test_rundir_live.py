@@ -86,3 +86,19 @@ def test_retiring_never_raises(tmp_path, content):
         (tmp_path / ANALYSIS_FILE).write_bytes(content)
     assert retire_stale_analysis(tmp_path) is False  # not an analysis of a running run
     assert retire_stale_analysis(tmp_path / "missing") is False
+
+
+def test_the_shape_series_goes_with_a_retired_analysis(tmp_path):
+    """``analysis_shape.csv`` belongs to the analysis it was written with: retired with it,
+    kept with a current one."""
+    from knotmm.io.rundir import SHAPE_FILE
+
+    _analysis(tmp_path)
+    (tmp_path / SHAPE_FILE).write_text("time,rg\n0,1\n")
+    (tmp_path / TRAJECTORY_FILE).write_bytes(b"frames")
+    _age(tmp_path / TRAJECTORY_FILE, 10)  # the analysis is newer than the last frame: kept
+    assert retire_stale_analysis(tmp_path) is False
+    assert (tmp_path / SHAPE_FILE).exists()
+    _age(tmp_path / ANALYSIS_FILE, 20)  # now older than the last frame: retired, with it
+    assert retire_stale_analysis(tmp_path) is True
+    assert not (tmp_path / ANALYSIS_FILE).exists() and not (tmp_path / SHAPE_FILE).exists()
