@@ -279,6 +279,42 @@ public:
     int getLastStages() const;
     double getSpectralRadius() const;
     double estimateSpectralRadius();
+    void setNumCopies(int copies);
+    int getNumCopies() const;
+    bool stepCopiesTo(const std::vector<double>& targets, double maxSeconds);
+    std::vector<double> getCopyPositions(int copy) const;
+    void setCopyPositions(int copy, const std::vector<double>& positions);
+    double getCopyTime(int copy) const;
+    void setCopyTime(int copy, double time);
+    std::string getCopyFaultKind(int copy) const;
+    std::string getCopyFaultMessage(int copy) const;
+    void clearCopyFault(int copy);
+    double getCopySpacing() const;
+%extend {
+    // The integrator's state (step size, stepper) and a copy's, as bytes; restored from bytes.
+    PyObject* getIntegratorState() const {
+        const std::string state = $self->getIntegratorState();
+        return PyBytes_FromStringAndSize(state.data(), (Py_ssize_t) state.size());
+    }
+    void setIntegratorState(PyObject* state) {
+        char* buffer = NULL;
+        Py_ssize_t size = 0;
+        if (PyBytes_AsStringAndSize(state, &buffer, &size) != 0)
+            throw OpenMM::OpenMMException("setIntegratorState: expected bytes");
+        $self->setIntegratorState(std::string(buffer, (size_t) size));
+    }
+    PyObject* getCopyState(int copy) const {
+        const std::string state = $self->getCopyState(copy);
+        return PyBytes_FromStringAndSize(state.data(), (Py_ssize_t) state.size());
+    }
+    void setCopyState(int copy, PyObject* state) {
+        char* buffer = NULL;
+        Py_ssize_t size = 0;
+        if (PyBytes_AsStringAndSize(state, &buffer, &size) != 0)
+            throw OpenMM::OpenMMException("setCopyState: expected bytes");
+        $self->setCopyState(copy, std::string(buffer, (size_t) size));
+    }
+}
 %extend {
     // As OpenMM's plugins: the RPYIntegrator behind a base-class reference (what
     // XmlSerializer and CompoundIntegrator hand back), and whether there is one.

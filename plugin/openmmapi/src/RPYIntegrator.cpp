@@ -13,6 +13,7 @@
 #include <istream>
 #include <limits>
 #include <ostream>
+#include <sstream>
 
 using namespace OpenMM;
 using namespace KnotMM;
@@ -169,6 +170,7 @@ void RPYIntegrator::takeStep(double targetTime) {
 
 void RPYIntegrator::step(int steps) {
     checkInitialized();
+    checkSingle("step");
     for (int i = 0; i < steps; i++)
         takeStep(std::numeric_limits<double>::infinity());
 }
@@ -185,6 +187,7 @@ void RPYIntegrator::checkTarget(double time) const {
 
 void RPYIntegrator::stepTo(double time) {
     checkInitialized();
+    checkSingle("stepTo");
     checkTarget(time);
     const double slack = landingSlack(time);
     while (context->getTime() < time - slack)
@@ -193,6 +196,7 @@ void RPYIntegrator::stepTo(double time) {
 
 bool RPYIntegrator::stepToWithin(double time, double maxSeconds) {
     checkInitialized();
+    checkSingle("stepToWithin");
     if (!(maxSeconds >= 0))
         throw OpenMMException("stepToWithin: maxSeconds=" + formatNumber(maxSeconds) +
                               ": must be >= 0 (seconds of wall-clock time; +infinity for no limit)");
@@ -250,19 +254,157 @@ double RPYIntegrator::getSpectralRadius() const {
 }
 
 void RPYIntegrator::createCheckpoint(std::ostream& stream) const {
-    double h = getStepSize();
-    stream.write((const char*) &CHECKPOINT_VERSION, sizeof(int));
-    stream.write((const char*) &h, sizeof(double));
+    writeStateHeader(stream, getStepSize());
     kernel.getAs<IntegrateRPYStepKernel>().createCheckpoint(stream);
 }
 
 void RPYIntegrator::loadCheckpoint(std::istream& stream) {
+    setStepSize(readStateHeader(stream));
+    kernel.getAs<IntegrateRPYStepKernel>().loadCheckpoint(stream);
+}
+
+std::string RPYIntegrator::getIntegratorState() const {
+    checkInitialized();
+    std::ostringstream stream(std::ios::binary);
+    createCheckpoint(stream);
+    return stream.str();
+}
+
+void RPYIntegrator::setIntegratorState(const std::string& state) {
+    checkInitialized();
+    std::istringstream stream(state, std::ios::binary);
+    loadCheckpoint(stream);
+}
+
+// --- copies --------------------------------------------------------------------------------------
+
+void RPYIntegrator::setNumCopies(int copies) {
+    if (owner != nullptr)
+        throw OpenMMException("numCopies: set it before the Context is created");
+    if (copies < 1)
+        throw OpenMMException("numCopies=" + std::to_string(copies) + ": must be at least 1");
+    numCopies = copies;
+}
+
+RPYCopies& RPYIntegrator::copies() const {
+    checkInitialized();
+    RPYCopies* c = kernel.getAs<IntegrateRPYStepKernel>().getCopies();
+    if (c == nullptr)
+        throw OpenMMException("RPYIntegrator: this integrator holds one system (numCopies = 1); call "
+                              "setNumCopies(K) before the Context is created");
+    return *c;
+}
+
+void RPYIntegrator::checkSingle(const char* what) const {
+    if (numCopies > 1)
+        throw OpenMMException(std::string("RPYIntegrator: ") + what + " moves one system; this one holds " +
+                              std::to_string(numCopies) + " copies: use stepCopiesTo");
+}
+
+namespace {
+void checkCopy(const RPYCopies& c, int copy) {
+    if (copy < 0 || copy >= c.numCopies())
+        throw OpenMMException("copy " + std::to_string(copy) + ": out of range; the copies are 0 to " +
+                              std::to_string(c.numCopies() - 1));
+}
+} // namespace
+
+bool RPYIntegrator::stepCopiesTo(const std::vector<double>& targets, double maxSeconds) {
+    RPYCopies& c = copies();
+    if ((int) targets.size() != c.numCopies())
+        throw OpenMMException("stepCopiesTo: " + std::to_string(targets.size()) + " targets for " +
+                              std::to_string(c.numCopies()) + " copies");
+    if (!(maxSeconds >= 0))
+        throw OpenMMException("stepCopiesTo: maxSeconds=" + formatNumber(maxSeconds) + ": must be >= 0");
+    for (int k = 0; k < c.numCopies(); k++) {
+        if (!std::isfinite(targets[k]))
+            throw OpenMMException("stepCopiesTo: the target of copy " + std::to_string(k) + " is not finite");
+        if (targets[k] < c.getTime(k) - landingSlack(targets[k]))
+            throw OpenMMException("stepCopiesTo: the target of copy " + std::to_string(k) + ", " +
+                                  formatNumber(targets[k]) + " ps, is earlier than its time " +
+                                  formatNumber(c.getTime(k)) + " ps");
+    }
+    return c.stepTo(*context, *this, targets, maxSeconds);
+}
+
+std::vector<double> RPYIntegrator::getCopyPositions(int copy) const {
+    RPYCopies& c = copies();
+    checkCopy(c, copy);
+    return c.getPositions(copy);
+}
+
+void RPYIntegrator::setCopyPositions(int copy, const std::vector<double>& positions) {
+    RPYCopies& c = copies();
+    checkCopy(c, copy);
+    if ((int) positions.size() != 3 * c.beadsPerCopy())
+        throw OpenMMException("setCopyPositions: " + std::to_string(positions.size()) + " numbers, expected " +
+                              std::to_string(3 * c.beadsPerCopy()) + " (3 per bead)");
+    for (double x : positions)
+        if (!std::isfinite(x))
+            throw OpenMMException("setCopyPositions: a position is not finite");
+    c.setPositions(copy, positions);
+}
+
+double RPYIntegrator::getCopyTime(int copy) const {
+    RPYCopies& c = copies();
+    checkCopy(c, copy);
+    return c.getTime(copy);
+}
+
+void RPYIntegrator::setCopyTime(int copy, double time) {
+    RPYCopies& c = copies();
+    checkCopy(c, copy);
+    if (!std::isfinite(time))
+        throw OpenMMException("setCopyTime: the time is not finite");
+    c.setTime(copy, time);
+}
+
+std::string RPYIntegrator::getCopyState(int copy) const {
+    RPYCopies& c = copies();
+    checkCopy(c, copy);
+    std::ostringstream stream(std::ios::binary);
+    c.createCheckpoint(copy, stream);
+    return stream.str();
+}
+
+void RPYIntegrator::setCopyState(int copy, const std::string& state) {
+    RPYCopies& c = copies();
+    checkCopy(c, copy);
+    std::istringstream stream(state, std::ios::binary);
+    c.loadCheckpoint(copy, stream);
+}
+
+std::string RPYIntegrator::getCopyFaultKind(int copy) const {
+    RPYCopies& c = copies();
+    checkCopy(c, copy);
+    return c.faultKind(copy);
+}
+
+std::string RPYIntegrator::getCopyFaultMessage(int copy) const {
+    RPYCopies& c = copies();
+    checkCopy(c, copy);
+    return c.faultMessage(copy);
+}
+
+void RPYIntegrator::clearCopyFault(int copy) {
+    RPYCopies& c = copies();
+    checkCopy(c, copy);
+    c.clearFault(copy);
+}
+
+double RPYIntegrator::getCopySpacing() const { return copies().spacing(); }
+
+void RPYIntegrator::writeStateHeader(std::ostream& stream, double stepSize) {
+    stream.write((const char*) &CHECKPOINT_VERSION, sizeof(int));
+    stream.write((const char*) &stepSize, sizeof(double));
+}
+
+double RPYIntegrator::readStateHeader(std::istream& stream) {
     int version = 0;
     double h = 0;
     stream.read((char*) &version, sizeof(int));
     if (version != CHECKPOINT_VERSION)
         throw OpenMMException("RPYIntegrator: checkpoint was written by another version of the plugin");
     stream.read((char*) &h, sizeof(double));
-    setStepSize(h);
-    kernel.getAs<IntegrateRPYStepKernel>().loadCheckpoint(stream);
+    return h;
 }

@@ -43,9 +43,9 @@ void StepWork::reject(double next, double error, const char* tail) {
     if (next < integrator->getMinimumStepSize())
         throw RPYStepFault(RPYStepFault::StepUnderflow,
                            std::string("RPYIntegrator (") + name() + "): the step fell to " + formatNumber(next) +
-                               " ps, below minimumStepSize, at t = " + formatNumber(context->getTime()) +
+                               " ps, below minimumStepSize, at t = " + formatNumber(t0) +
                                " ps (error estimate " + formatNumber(error) + " x tolerance)" + tail,
-                           name(), context->getTime(), -1, error);
+                           name(), t0, -1, error);
 }
 
 double StepWork::errorRatio(const StateVector& err, double tolerance) {

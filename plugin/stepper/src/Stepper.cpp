@@ -53,9 +53,21 @@ double Stepper::estimateSpectralRadius(ContextImpl& context, RPYIntegrator& inte
 }
 
 double Stepper::step(ContextImpl& context, RPYIntegrator& integrator, double targetTime) {
+    const double t0 = context.getTime();
+    const double h = advance(context, integrator, t0, targetTime);
+    double t1 = t0 + h;
+    if (std::isfinite(targetTime) && std::fabs(targetTime - t1) <= landingSlack(targetTime))
+        t1 = targetTime;  // land exactly
+    context.setTime(t1);
+    context.setStepCount(context.getStepCount() + 1);
+    return h;
+}
+
+double Stepper::advance(ContextImpl& context, RPYIntegrator& integrator, double t0, double targetTime) {
     RPYBackend& b = work.backend;
     work.context = &context;
     work.integrator = &integrator;
+    work.t0 = t0;
     work.kT = integrator.getThermalEnergy();
     b.applySettings(integrator);
     StateVector& y = *work.y;
@@ -67,7 +79,6 @@ double Stepper::step(ContextImpl& context, RPYIntegrator& integrator, double tar
         invalidateCache();
     if (fixed.held.valid && !b.equal(y, *fixed.held.positions))
         fixed.held.valid = false;  // moved from outside: as knotmm's LeimkuhlerMatthews.reset()
-    const double t0 = context.getTime();
     const double maxDt = std::isfinite(targetTime) ? targetTime - t0 : std::numeric_limits<double>::infinity();
     double h;
     try {
@@ -103,11 +114,6 @@ double Stepper::step(ContextImpl& context, RPYIntegrator& integrator, double tar
     b.setPositions(context, *work.y1);
     if (fixed.held.valid)
         b.copy(*fixed.held.positions, *work.y1);
-    double t1 = t0 + h;
-    if (std::isfinite(targetTime) && std::fabs(targetTime - t1) <= landingSlack(targetTime))
-        t1 = targetTime;  // land exactly
-    context.setTime(t1);
-    context.setStepCount(context.getStepCount() + 1);
     work.counts.accepted++;
     return h;
 }

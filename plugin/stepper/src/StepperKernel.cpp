@@ -2,6 +2,7 @@
 
 #include "openmm/OpenMMException.h"
 #include "openmm/System.h"
+#include "knotmm/stepper/BinaryIO.h"
 
 using namespace OpenMM;
 using namespace KnotMM;
@@ -21,6 +22,14 @@ void StepperKernel::initialize(const System& system, const RPYIntegrator& integr
     stepper.reset();
     backend = createBackend(system, integrator);
     stepper.reset(new Stepper(*backend, integrator));
+    copies.reset();
+    if (integrator.getNumCopies() > 1)
+        copies = createCopies(system, integrator);
+}
+
+std::unique_ptr<RPYCopies> StepperKernel::createCopies(const System&, const RPYIntegrator&) {
+    throw OpenMMException("RPYIntegrator: copies of a system (numCopies > 1) run on the Reference and CPU "
+                          "platforms; this one (" + getPlatform().getName() + ") has none");
 }
 
 double StepperKernel::execute(ContextImpl& context, RPYIntegrator& integrator, double targetTime) {
@@ -34,6 +43,31 @@ void StepperKernel::computeGroupEnergies(ContextImpl& context, const std::vector
 
 void StepperKernel::invalidateCache() { stepper->invalidateCache(); }
 
-void StepperKernel::createCheckpoint(std::ostream& stream) const { stepper->createCheckpoint(stream); }
+void StepperKernel::createCheckpoint(std::ostream& stream) const {
+    stepper->createCheckpoint(stream);
+    if (copies == nullptr)
+        return;
+    // the copies after the whole system's part: each one's positions, time and state
+    for (int k = 0; k < copies->numCopies(); k++) {
+        binary::putVector(stream, copies->getPositions(k));
+        binary::put(stream, copies->getTime(k));
+        copies->createCheckpoint(k, stream);
+    }
+}
 
-void StepperKernel::loadCheckpoint(std::istream& stream) { stepper->loadCheckpoint(stream); }
+void StepperKernel::loadCheckpoint(std::istream& stream) {
+    stepper->loadCheckpoint(stream);
+    if (copies == nullptr)
+        return;
+    for (int k = 0; k < copies->numCopies(); k++) {
+        std::vector<double> positions;
+        double time = 0.0;
+        binary::getVector(stream, positions);
+        binary::get(stream, time);
+        if (!stream || (int) positions.size() != 3 * copies->beadsPerCopy())
+            throw OpenMMException("RPYIntegrator: the checkpoint does not hold this batch's copies");
+        copies->setPositions(k, positions);
+        copies->setTime(k, time);
+        copies->loadCheckpoint(k, stream);
+    }
+}

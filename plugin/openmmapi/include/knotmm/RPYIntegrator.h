@@ -14,10 +14,13 @@
 #include "openmm/Kernel.h"
 #include "openmm/Vec3.h"
 
+#include <iosfwd>
 #include <string>
 #include <vector>
 
 namespace KnotMM {
+
+class RPYCopies;
 
 class RPYIntegrator : public OpenMM::Integrator {
 public:
@@ -127,6 +130,48 @@ public:
      */
     double estimateSpectralRadius();
 
+    /**
+     * The integrator's state (step size and everything that decides the next steps: the
+     * stepper's part of a Context checkpoint) as bytes, and its restoration: how a copy's
+     * state moves between a batch (setNumCopies) and an integrator of that copy alone.
+     */
+    std::string getIntegratorState() const;
+    void setIntegratorState(const std::string& state);
+
+    // --- copies: K replicas of one system in one Context ---------------------------------
+    /**
+     * Integrate K copies of one system in one Context (set before the Context is created;
+     * default 1): the System holds K copies of a system of n beads, copy k's beads being the
+     * System's beads k n .. (k + 1) n - 1, its forces nothing between copies but what the
+     * distance between them makes (the integrator keeps them apart, more than twice the
+     * largest nonbonded cutoff). Each copy has its own positions, time, step size, step
+     * control and noise stream, and its own block of the mobility; one force evaluation
+     * serves every copy that needs one. Stepped by stepCopiesTo (step, stepTo and
+     * getGroupEnergies refuse). Supported on the Reference and CPU platforms.
+     */
+    void setNumCopies(int copies);
+    int getNumCopies() const { return numCopies; }
+    /** RPYCopies::stepTo: every copy towards its own target (ps); true when all are there. */
+    bool stepCopiesTo(const std::vector<double>& targets, double maxSeconds);
+    /** Copy k's bead positions, 3n numbers, bead-major, in nm. */
+    std::vector<double> getCopyPositions(int copy) const;
+    void setCopyPositions(int copy, const std::vector<double>& positions);
+    double getCopyTime(int copy) const;
+    void setCopyTime(int copy, double time);
+    /** Copy k's state in getIntegratorState()'s layout. */
+    std::string getCopyState(int copy) const;
+    void setCopyState(int copy, const std::string& state);
+    /** Copy k's fault: kind ("" for none) and message; clearCopyFault lets it step again. */
+    std::string getCopyFaultKind(int copy) const;
+    std::string getCopyFaultMessage(int copy) const;
+    void clearCopyFault(int copy);
+    /** Centre-to-centre distance of neighbouring copies in the Context, in nm. */
+    double getCopySpacing() const;
+    /** The integrator's part of a checkpoint: its layout tag and the step size (ps). */
+    static void writeStateHeader(std::ostream& stream, double stepSize);
+    /** Reads writeStateHeader's part; returns the step size. Throws for another layout. */
+    static double readStateHeader(std::istream& stream);
+
 protected:
     void initialize(OpenMM::ContextImpl& context) override;
     void cleanup() override;
@@ -138,12 +183,14 @@ protected:
 
 private:
     void checkInitialized() const;
+    RPYCopies& copies() const;
+    void checkSingle(const char* what) const;
     void checkTarget(double time) const;
     void takeStep(double targetTime);
     std::string method, noiseMethod;
     double lanczosTolerance;
     double errorTolerance, beadDiameter, mobility, thermalEnergy, minStepSize, maxStepSize;
-    int randomSeed, numThreads;
+    int randomSeed, numThreads, numCopies = 1;
     std::vector<OpenMM::Vec3> rkcStart;
     OpenMM::Kernel kernel;
     bool kernelReady = false;

@@ -20,6 +20,42 @@ class ContextImpl;
 
 namespace KnotMM {
 
+/**
+ * K copies of one system in one Context, each with its own state, time and steps
+ * (RPYIntegrator::setNumCopies): what a platform that supports them implements. Copy k's
+ * beads are the System's beads k n .. (k + 1) n - 1 (virtual sites are not beads); the copies
+ * see each other in no force (they are kept apart in space) and the mobility is block
+ * diagonal. Positions are 3n numbers, bead-major, in nm (= d); times in ps (= tau_d).
+ */
+class RPYCopies {
+public:
+    virtual ~RPYCopies() {}
+    virtual int numCopies() const = 0;
+    virtual int beadsPerCopy() const = 0;
+    /**
+     * Step every copy that has not failed towards targets[k] (ps), each with its own step
+     * control, landing exactly, all copies' forces in one evaluation of the Context; returns
+     * once every copy has reached its target or failed, or, after a step, once maxSeconds of
+     * wall-clock time are spent (true: every copy that has not failed is at its target). A
+     * copy's failed step records its fault (copyFault) and leaves it at its last good state.
+     */
+    virtual bool stepTo(OpenMM::ContextImpl& context, RPYIntegrator& integrator,
+                        const std::vector<double>& targets, double maxSeconds) = 0;
+    virtual std::vector<double> getPositions(int copy) const = 0;
+    virtual void setPositions(int copy, const std::vector<double>& positions) = 0;
+    virtual double getTime(int copy) const = 0;
+    virtual void setTime(int copy, double time) = 0;
+    /** The copy's integrator state in RPYIntegrator's checkpoint layout (step size, stepper). */
+    virtual void createCheckpoint(int copy, std::ostream& stream) const = 0;
+    virtual void loadCheckpoint(int copy, std::istream& stream) = 0;
+    /** The copy's fault: its kind (RPYStepFault::kindName, "error" for another) and message; "" for none. */
+    virtual std::string faultKind(int copy) const = 0;
+    virtual std::string faultMessage(int copy) const = 0;
+    virtual void clearFault(int copy) = 0;
+    /** Centre-to-centre distance of neighbouring copies in the Context (nm). */
+    virtual double spacing() const = 0;
+};
+
 class IntegrateRPYStepKernel : public OpenMM::KernelImpl {
 public:
     static std::string Name() { return "IntegrateRPYStep"; }
@@ -56,6 +92,8 @@ public:
      * kernel's state as they were.
      */
     virtual double estimateSpectralRadius(OpenMM::ContextImpl& context, RPYIntegrator& integrator) = 0;
+    /** The copies of a batch (RPYIntegrator::getNumCopies() > 1), nullptr for one system. */
+    virtual RPYCopies* getCopies() const { return nullptr; }
 };
 
 } // namespace KnotMM

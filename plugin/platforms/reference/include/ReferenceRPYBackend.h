@@ -2,6 +2,7 @@
 #define KNOTMM_REFERENCE_RPY_BACKEND_H_
 
 #include "RPYMobility.h"
+#include "openmm/Vec3.h"
 #include "knotmm/stepper/Backend.h"
 
 #include <vector>
@@ -29,6 +30,8 @@ public:
 class ReferenceRPYBackend : public RPYBackend {
 public:
     ReferenceRPYBackend(const OpenMM::System& system, const RPYIntegrator& integrator);
+    /** A backend of `numBeads` beads that reads no System (a copy of a batch, ReferenceRPYBatch). */
+    ReferenceRPYBackend(int numBeads, const RPYIntegrator& integrator);
     int numBeads() const override { return n; }
     VectorPtr createVector() override { return VectorPtr(new ReferenceVector(3 * n)); }
     void applySettings(const RPYIntegrator& integrator) override;
@@ -50,6 +53,14 @@ public:
     void download(const StateVector& v, std::vector<double>& host) override;
     void upload(const std::vector<double>& host, StateVector& v) override;
 
+protected:
+    /**
+     * out = mu(y) F, F the forces of the beads, force[first + b] for bead b (kJ/mol/nm =
+     * F0): the mobility half of velocity().
+     */
+    void mobilityTimes(const std::vector<double>& y, const std::vector<OpenMM::Vec3>& force, int first,
+                       std::vector<double>& out);
+
 private:
     /** The Context's bead positions = y, shifted to their centre of mass if `shift`. */
     void writePositions(OpenMM::ContextImpl& context, const std::vector<double>& y, bool shift) const;
@@ -64,6 +75,7 @@ private:
     LanczosSqrt lanczosSqrt;
     std::vector<double> xs, fs, vs, zs, mat;  // scratch: structure-of-arrays copies, the matrix
     std::vector<double> noiseAt;              // factorNoise's positions, structure of arrays
+    std::vector<OpenMM::Vec3> beadForces;     // scratch: the beads' forces when sites sit among them
 };
 
 } // namespace KnotMM

@@ -2,6 +2,7 @@
 #define KNOTMM_REFERENCE_RPY_KERNELS_H_
 
 #include "ReferenceRPYBackend.h"
+#include "ReferenceRPYBatch.h"
 #include "knotmm/stepper/StepperKernel.h"
 
 namespace KnotMM {
@@ -16,6 +17,10 @@ protected:
     std::unique_ptr<RPYBackend> createBackend(const OpenMM::System& system,
                                               const RPYIntegrator& integrator) override {
         return std::unique_ptr<RPYBackend>(new ReferenceRPYBackend(system, integrator));
+    }
+    std::unique_ptr<RPYCopies> createCopies(const OpenMM::System& system,
+                                            const RPYIntegrator& integrator) override {
+        return std::unique_ptr<RPYCopies>(new ReferenceRPYBatch(system, integrator));
     }
 };
 

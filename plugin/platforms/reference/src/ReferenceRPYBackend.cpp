@@ -41,6 +41,17 @@ ReferenceRPYBackend::ReferenceRPYBackend(const System& system, const RPYIntegrat
     applySettings(integrator);
 }
 
+ReferenceRPYBackend::ReferenceRPYBackend(int numBeads, const RPYIntegrator& integrator)
+    : diameter(integrator.getBeadDiameter()), mu0(integrator.getMobility()),
+      numThreads(integrator.getNumThreads()), mobility(diameter, mu0, numThreads) {
+    n = numBeads;
+    for (int b = 0; b < n; b++)
+        beadParticle.push_back(b);
+    for (vector<double>* v : {&xs, &fs, &vs, &zs})
+        v->assign(3 * n, 0.0);
+    applySettings(integrator);
+}
+
 void ReferenceRPYBackend::applySettings(const RPYIntegrator& integrator) {
     lanczos = integrator.getNoiseMethod() == "lanczos";
     lanczosTolerance = integrator.getLanczosTolerance();
@@ -81,15 +92,25 @@ void ReferenceRPYBackend::setPositions(ContextImpl& context, const StateVector& 
 }
 
 void ReferenceRPYBackend::velocity(ContextImpl& context, const StateVector& y, StateVector& v) {
-    const vector<double>& yy = data(y);
-    vector<double>& out = data(v);
-    writePositions(context, yy, true);
+    writePositions(context, data(y), true);
     context.calcForcesAndEnergy(true, false, context.getIntegrator().getIntegrationForceGroups());
     const vector<Vec3>& force = *platformData(context).forces;
+    if (beadParticle.empty() || beadParticle.back() == n - 1)  // the beads are particles 0 .. n-1
+        mobilityTimes(data(y), force, 0, data(v));
+    else {
+        beadForces.resize(n);
+        for (int b = 0; b < n; b++)
+            beadForces[b] = force[beadParticle[b]];
+        mobilityTimes(data(y), beadForces, 0, data(v));
+    }
+}
+
+void ReferenceRPYBackend::mobilityTimes(const vector<double>& yy, const vector<Vec3>& force, int first,
+                                        vector<double>& out) {
     for (int b = 0; b < n; b++)
         for (int k = 0; k < 3; k++) {
             xs[k * n + b] = yy[3 * b + k];
-            fs[k * n + b] = force[beadParticle[b]][k];
+            fs[k * n + b] = force[first + b][k];
         }
     mobility.velocities(n, xs.data(), fs.data(), vs.data());
     for (int b = 0; b < n; b++)

@@ -32,6 +32,7 @@ public:
     OpenMM::ContextImpl* context = nullptr;  // set for each step
     RPYIntegrator* integrator = nullptr;     // set for each step
     double kT = 0.0;
+    double t0 = 0.0;  // the step's start time (ps), set for each step
     VectorPtr y, y1;  // the step's start and end
     VelocityCache k1;  // velocity at y
     StepCounts counts;

@@ -26,6 +26,12 @@ public:
      * (RPYStepFault, or any other exception) the Context keeps the step's start.
      */
     double step(OpenMM::ContextImpl& context, RPYIntegrator& integrator, double targetTime);
+    /**
+     * step() for a state whose time is kept outside the Context (a copy of a batch,
+     * BatchStepper): one accepted step from time t0 (ps), never past targetTime; the
+     * backend's positions are updated, the Context's time and step count are not.
+     */
+    double advance(OpenMM::ContextImpl& context, RPYIntegrator& integrator, double t0, double targetTime);
     /** Forget cached velocities (the state was changed from outside). */
     void invalidateCache();
     /** Everything that decides the next steps, so a restored run repeats bit for bit. */

@@ -30,15 +30,22 @@ public:
     double estimateSpectralRadius(OpenMM::ContextImpl& context, RPYIntegrator& integrator) override {
         return stepper->estimateSpectralRadius(context, integrator);
     }
+    RPYCopies* getCopies() const override { return copies.get(); }
 
 protected:
     /** The platform's backend for `system` (checked already: not periodic, no constraints). */
     virtual std::unique_ptr<RPYBackend> createBackend(const OpenMM::System& system,
                                                       const RPYIntegrator& integrator) = 0;
+    /**
+     * The platform's copies (integrator.getNumCopies() > 1); the default refuses: a platform
+     * without them says so when the Context is created.
+     */
+    virtual std::unique_ptr<RPYCopies> createCopies(const OpenMM::System& system, const RPYIntegrator& integrator);
 
 private:
     std::unique_ptr<RPYBackend> backend;
     std::unique_ptr<Stepper> stepper;
+    std::unique_ptr<RPYCopies> copies;
 };
 
 } // namespace KnotMM
