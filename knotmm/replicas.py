@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from knotmm.config import RunConfig
+from knotmm.engine.copies import CopyGroup, copies_refusal
+from knotmm.engine.interrupt import StopRequested, request_stop, take_stop_request
 from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault
 from knotmm.io.replica_set import (
     REPLICA_SET_FILE,
@@ -146,10 +149,51 @@ class ReplicaSetResult:
                 f"wall time {self.wall_time:.1f} s, in {self.directory}/replica_*")
 
 
-def _set_record(cfg: RunConfig, seeds: list[int]) -> dict:
+def _set_record(cfg: RunConfig, seeds: list[int], refusal: str | None) -> dict:
+    stepping = ({"stepping": "together", "stepping_reason": _TOGETHER} if refusal is None
+                else {"stepping": "one after another", "stepping_reason": refusal})
     return {"replicas": {"count": len(seeds), "seeds": seeds,
-                         "directories": [f"replica_{k}" for k in range(len(seeds))]},
+                         "directories": [f"replica_{k}" for k in range(len(seeds))],
+                         **stepping},
             "run_file": cfg.to_dict()}
+
+
+_TOGETHER = ("the replicas are copies of one system in one OpenMM Context: one force "
+             "evaluation for all, each its own steps (knotmm.engine.copies)")
+
+
+def _together(count: int, go, errors: dict[int, str], root: Path,
+              group: CopyGroup) -> list[RunResult | None]:
+    """Run replica k's ``go(k)`` in a thread of its own, all at once, stepping as copies of
+    ``group``; wait for all. A replica that ends, however it ends, leaves the group; a stop
+    asked for by a signal stops them all (each writes its checkpoint). The first failure
+    (an interruption first) is raised once every replica has ended."""
+    results: list[RunResult | None] = [None] * count
+    failures: dict[int, BaseException] = {}
+
+    def one(k):
+        try:
+            results[k] = _one(k, lambda: go(k), errors, root)
+        except StopRequested as exc:
+            failures[k] = exc
+            request_stop()  # the others stop at their next step too
+        except BaseException as exc:  # noqa: BLE001 - raised below, in the caller's thread
+            failures[k] = exc
+        finally:
+            group.leave(k)
+
+    threads = [threading.Thread(target=one, args=(k,), name=f"knotmm-replica-{k}", daemon=True)
+               for k in range(count)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        while t.is_alive():
+            t.join(0.2)  # the main thread stays free to take signals
+    take_stop_request()  # asked for by a replica for the others; all have stopped
+    if failures:
+        stops = [e for e in failures.values() if isinstance(e, KeyboardInterrupt)]
+        raise stops[0] if stops else failures[min(failures)]
+    return results
 
 
 def _replica_config(cfg: RunConfig, seed: int, directory: Path) -> RunConfig:
@@ -157,7 +201,7 @@ def _replica_config(cfg: RunConfig, seed: int, directory: Path) -> RunConfig:
                         "output.directory": str(directory)})
 
 
-def _check_replicas(cfg: RunConfig, root: Path, seeds: list[int]) -> None:
+def _check_replicas(cfg: RunConfig, root: Path, seeds: list[int]) -> str | None:
     """Every check of the input that can refuse the set, before anything is written.
 
     Replica 0 is planned as :func:`knotmm.workflow.run` plans a run (the integrator against
@@ -170,16 +214,19 @@ def _check_replicas(cfg: RunConfig, root: Path, seeds: list[int]) -> None:
 
     if root.exists() and not root.is_dir():
         raise RunDirectoryError(f"output directory {str(root)!r} is a file; choose another --out")
-    first = resources = None
+    first = resources = refusal = None
     for k, seed in enumerate(seeds):
         sub = _replica_config(cfg, seed, replica_directory(root, k))
         if k == 0:
             built = prepare(sub, identify="skip")
             first, resources = built.template.positions, built.plan.resources
+            sim = built.simulation
+            refusal = copies_refusal(sim.engine, sim.platform_name, len(seeds))
             continue
         positions = build_template(sub, identify="skip", resources=resources).positions
         if k == 1 and np.array_equal(positions, first):
             break  # the start does not depend on the seed: the others are replica 0's
+    return refusal
 
 
 def _prepare_set(root: Path, count: int, overwrite: bool, record: dict) -> bytes | None:
@@ -305,20 +352,37 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
     wall0 = time.perf_counter()
     root = Path(directory if directory is not None else cfg["output.directory"])
     seeds = replica_seeds(cfg["run.seed"], count)
-    _check_replicas(cfg, root, seeds)
+    refusal = _check_replicas(cfg, root, seeds)
     lock = RunLock(root, "run")  # before anything in root is touched
     errors: dict[int, str] = {}
     results: list[RunResult | None] = []
     try:
         try:
-            previous = _prepare_set(root, count, overwrite, _set_record(cfg, seeds))
+            previous = _prepare_set(root, count, overwrite, _set_record(cfg, seeds, refusal))
         except BaseException:
             if lock.created:
                 lock.release()
                 with contextlib.suppress(OSError):
                     root.rmdir()
             raise
-        for k, seed in enumerate(seeds):
+        if refusal is None:
+            group = CopyGroup(count)
+
+            def go(k):
+                where = replica_directory(root, k)
+                return run(_replica_config(cfg, seeds[k], where), directory=where,
+                           overwrite=overwrite, progress=progress if k == 0 else False,
+                           wait_for_checks=wait_for_checks, copies=(group, k))
+
+            log.info("%d replicas stepped together in %s", count, root)
+            try:
+                results = _together(count, go, errors, root, group)
+            except (ValueError, RunDirectoryError):
+                if not any((replica_directory(root, k) / RUN_FILE).exists()
+                           for k in range(count)):
+                    _undo_start(root, lock, previous)
+                raise
+        for k, seed in enumerate(seeds if refusal is not None else []):
             where = replica_directory(root, k)
             sub = _replica_config(cfg, seed, where)
             log.info("replica %d of %d (run.seed = %d) in %s", k + 1, count, seed, where)
@@ -374,8 +438,15 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     lock = RunLock(root, "--resume")
     errors: dict[int, str] = {}
     results: list[RunResult | None] = []
+    stepping = record["replicas"].get("stepping", "one after another")
     try:
-        for k, seed in enumerate(seeds):
+        if stepping == "together" and len(seeds) > 1:
+            group = CopyGroup(len(seeds))
+            results = _together(len(seeds), lambda k: _resume_one(
+                root, k, seeds[k], cfg, target, duration, progress if k == 0 else False,
+                wait_for_checks, (group, k)), errors, root, group)
+        for k, seed in enumerate(seeds if not (stepping == "together" and len(seeds) > 1)
+                                 else []):
             where = replica_directory(root, k)
             facts = _facts(where)
             if facts is None:  # never started, or nothing of it worth keeping
@@ -394,10 +465,27 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
                 where, progress=progress, duration=duration,
                 wait_for_checks=wait_for_checks), errors, root))
         if duration is not None:
-            write_replica_set(root, _set_record(cfg, seeds))
+            refusal = None if stepping == "together" else record["replicas"].get(
+                "stepping_reason", "one after another")
+            write_replica_set(root, _set_record(cfg, seeds, refusal))
     finally:
         lock.release()
     return ReplicaSetResult(root, results, errors, time.perf_counter() - wall0)
+
+
+def _resume_one(root: Path, k: int, seed: int, cfg: RunConfig, target: float,
+                duration: float | None, progress, wait_for_checks: bool, copies):
+    """Go on with replica ``k`` of a set stepped together (``resume_replicas``): from its
+    checkpoint, from its start, or (finished) its result as it stands."""
+    where = replica_directory(root, k)
+    facts = _facts(where)
+    if facts is None:
+        return run(_replica_config(cfg, seed, where), directory=where, overwrite=True,
+                   progress=progress, wait_for_checks=wait_for_checks, copies=copies)
+    if _reached(facts, target):
+        return _finished(where, facts)
+    return resume(where, progress=progress, duration=duration,
+                  wait_for_checks=wait_for_checks, copies=copies)
 
 
 def _facts(where: Path) -> dict | None:

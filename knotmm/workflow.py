@@ -154,6 +154,7 @@ def run(
     overwrite: bool = False,
     progress: bool | None = None,
     wait_for_checks: bool = False,
+    copies=None,
 ) -> RunResult:
     """Run a simulation described by ``cfg`` and write its run directory.
 
@@ -172,6 +173,9 @@ def run(
         (topoly's import, seconds). By default they are waited for only once it is up, else
         recorded as not made (``knot_type_checks_dropped``, a note for the template), so a
         short run does not wait for topoly; ``run.on_topology_change = "stop"`` always waits.
+    copies : tuple, optional
+        ``(group, k)``: step as replica ``k`` of a :class:`knotmm.engine.copies.CopyGroup`
+        (:mod:`knotmm.replicas`); the run leaves the group when it ends, however it ends.
 
     Returns
     -------
@@ -228,7 +232,7 @@ def run(
         raise
     course = _Course(plan.record, plan.output, plan.duration, plan.checks)
     return _drive(sim, course, directory, facts, None, progress, wall0, lock, template,
-                  wait_for_checks)
+                  wait_for_checks, copies=copies)
 
 
 def build_run(cfg: RunConfig, identify: str = "now"):
@@ -253,6 +257,7 @@ def resume(
     progress: bool | None = None,
     duration: float | None = None,
     wait_for_checks: bool = False,
+    copies=None,
 ) -> RunResult:
     """Continue a run that was stopped or killed, from its last checkpoint.
 
@@ -306,7 +311,7 @@ def resume(
         if not (directory / CHECKPOINT_FILE).exists():  # stopped before its first one
             lock.release()  # run() takes it again, and starts from the start
             return run(cfg, directory, overwrite=True, progress=progress,
-                       wait_for_checks=wait_for_checks)
+                       wait_for_checks=wait_for_checks, copies=copies)
         state = read_checkpoint(directory / CHECKPOINT_FILE)
         _check_same_physics(directory, cfg, state["counters"].get("config"))
         if duration is not None and float(duration) < state["time"]:
@@ -337,7 +342,7 @@ def resume(
         raise
     log.info("resuming %s at t = %g tau_d (step %d)", directory, sim.time, sim.currentStep)
     return _drive(sim, _Course.of(cfg), directory, facts, counters, progress, wall0, lock,
-                  resumed.template, wait_for_checks, resumed)
+                  resumed.template, wait_for_checks, resumed, copies=copies)
 
 
 def _checkpoint_engine(directory: Path, engine: str) -> str:
@@ -411,12 +416,13 @@ class _Course:
 
 
 def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lock,
-           template=None, wait_for_checks=False, resumed=None) -> RunResult:
+           template=None, wait_for_checks=False, resumed=None, copies=None) -> RunResult:
     """Attach the reporters, run to ``run.duration``, and record the outcome in run.toml.
 
     ``template``: a new run's :class:`knotmm.shapes.builder.Template`, whose knot type is
     judged at the first frame after the knot worker answers (a wrong one stops the run).
     ``resumed``: what a resumed run's checks continue (``check_record.ResumedChecks``).
+    ``copies``: ``(group, k)``, the replica's place in a :class:`knotmm.engine.copies.CopyGroup`.
     """
     resuming = counters is not None
     counters = counters or {"frames": 0, "rows": 0, "checkpoints": 0, "checks": 0}
@@ -428,6 +434,10 @@ def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lo
     status, message = STATUS_FAULT, None
     z0 = float(facts.get("start_z", sim.positions[:, 2].mean()))
     steps0 = sim.currentStep
+    if copies is not None:
+        group, k = copies
+        facts["replica_stepping"] = (f"together: copy {k} of {group.count} in one Context"
+                                     if group.join(k, sim) else "alone")
     try:
         try:
             with writing(directory / TRAJECTORY_FILE):
@@ -509,6 +519,8 @@ def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lo
             message = " ".join(f"{type(exc).__name__}: {exc}".split())
         raise
     finally:
+        if copies is not None:
+            copies[0].leave(copies[1])
         _close(dcd, obs, bar)
         if watch is not None:
             # an interrupted run must end promptly (a sweep repeats its stop signal every

@@ -31,6 +31,7 @@ __all__ = [
     "request_stop",
     "stop_between_steps",
     "stop_signal",
+    "take_stop_request",
 ]
 
 _requested = threading.Event()
@@ -65,6 +66,15 @@ def stop_signal() -> str | None:
 def request_stop() -> None:
     """Ask the running simulation to stop at its next step boundary (for signal handlers)."""
     _requested.set()
+
+
+def take_stop_request() -> bool:
+    """Whether a stop has been asked for; the request is taken (as :func:`raise_if_requested`
+    takes it), for a caller that stops several runs at once (:mod:`knotmm.engine.copies`)."""
+    if _requested.is_set():
+        _requested.clear()
+        return True
+    return False
 
 
 def raise_if_requested() -> None:

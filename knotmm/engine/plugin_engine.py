@@ -83,6 +83,8 @@ class PluginEngine(Engine):
         self.openmm_integrator = self.rpy
         self.adaptive = bool(getattr(integrator, "adaptive", False))
         self._rejected = 0
+        self.group = None  # a knotmm.engine.copies.CopyGroup that takes the steps, or None
+        self.copy_index = -1
 
     # -- counters -----------------------------------------------------------------------
     @property
@@ -151,8 +153,26 @@ class PluginEngine(Engine):
         knotmm.engine.interrupt.StopRequested
             A stop asked for by a signal, between two calls; ``sim`` holds a whole step.
         """
+        if self.group is not None and self._advance_with_group(sim, target):
+            return
         while not self._advance_within(sim, target):
             raise_if_requested()
+
+    def _advance_with_group(self, sim, target: float) -> bool:
+        """The stretch to ``target`` stepped by :attr:`group` with the other replicas'; the
+        replica's Context then holds what it reached. False: the copy failed, and nothing
+        changed here (the caller takes the stretch alone)."""
+        sim.sync_context()
+        before = self._counts()
+        positions, time, state = self.group.advance(self.copy_index, sim, target)
+        if positions is None:
+            return False
+        self.rpy.setIntegratorState(state)
+        sim.positions = positions
+        sim.time = time
+        self._count(before)
+        sim.sync_context()
+        return True
 
     def _advance_within(self, sim, target: float) -> bool:
         """One ``stepToWithin(target, chunk_seconds)`` call, checked; True at ``target``."""

@@ -71,6 +71,7 @@ class WorkerProcess:
         self._waiting: set[int] = set()
         self._results: dict[int, str | None] = {}
         self._ready = False  # the running worker has imported topoly
+        self._users = 0  # identifiers sharing it (runs going on side by side in threads)
         self._pid = os.getpid()  # a forked child must not use (or kill) its parent's worker
 
     # -- process ----------------------------------------------------------------------------
@@ -197,6 +198,20 @@ class WorkerProcess:
             self._forget_if_forked()
             if self._waiting:
                 self._give_up(None)
+
+    def attach(self) -> None:
+        """One more user shares the worker (:meth:`release` when it is done)."""
+        with self._lock:
+            self._users += 1
+
+    def release(self) -> None:
+        """A user is done: the last one stops the worker if it is busy
+        (:meth:`close_if_busy`); while others use it (replicas of a set stepped together,
+        each in a thread), their identifications under way go on."""
+        with self._lock:
+            self._users = max(0, self._users - 1)
+            if self._users == 0:
+                self.close_if_busy()
 
     # -- requests ---------------------------------------------------------------------------
     def submit(self, positions, timeout: float | None = None, **options) -> _Handle:
@@ -330,6 +345,9 @@ class IsolatedKnotIdentifier:
         self.own_process = own_process
         self.timeout = float(timeout)
         self._worker = WorkerProcess(timeout) if own_process else shared_worker()
+        self._attached = not own_process
+        if self._attached:
+            self._worker.attach()
 
     def start(self) -> None:
         """Start the worker now (in the background), so that the first check is quick."""
@@ -355,13 +373,15 @@ class IsolatedKnotIdentifier:
         """Let go of the worker; never waits on it.
 
         A worker of its own is stopped; the shared one is stopped only if it is busy (a
-        run being stopped must not wait for checks it will not judge) and is otherwise
-        left for the next caller (it stops when the process ends).
+        run being stopped must not wait for checks it will not judge) and no other
+        identifier uses it (:meth:`WorkerProcess.release`), and is otherwise left for the
+        next caller (it stops when the process ends).
         """
         if self.own_process:
             self._worker.close()
-        else:
-            self._worker.close_if_busy()
+        elif self._attached:
+            self._attached = False
+            self._worker.release()
 
     def __del__(self):  # pragma: no cover - best effort at interpreter exit
         try:

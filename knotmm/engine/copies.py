@@ -1,0 +1,262 @@
+"""Replicas stepped together: K runs' states as K copies of one system in one OpenMM Context.
+
+A replicated run (:mod:`knotmm.replicas`) runs each replica as a complete run of its own
+(:func:`knotmm.workflow.run`: its directory, reporters, knot checks, checkpoints and faults),
+each in a thread of this process. With a :class:`CopyGroup` the replicas' plugin engines do
+not step alone: each stretch up to a report time is handed to the group, and once every
+replica still running waits for one, the group steps all of them together with one
+:class:`knotmm.plugin.RPYIntegrator` bound to a Context that holds K copies of the system
+(``RPYIntegrator.setNumCopies``): one force evaluation for all copies, each copy with its own
+step control, time and noise stream, a copy that reached its report time waiting while the
+others go on. The state each replica hands over, and takes back, is its own Context's:
+positions, time, and the integrator's state (``getIntegratorState``: step size, cached
+velocity, step-control memory, noise stream, counters). So everything else a run does reads
+and writes the replica's own Context as if it had taken the steps itself, its checkpoints are
+those of a single run (``knotmm run --resume DIR/replica_k`` continues one replica alone), and
+a set that was killed resumes from its replicas' checkpoints.
+
+Where a copy fails (a fault of its step, non-finite positions, a bond beyond
+``run.max_bond_length``), its replica takes that stretch again alone from its start, with the
+single engine's checks (:meth:`knotmm.engine.plugin_engine.PluginEngine.advance_to`): the fault
+is then found and reported as in a single run, and the others go on. A stop asked for by a
+signal ends every replica's stretch at a whole step, and each replica writes its checkpoint.
+
+The copies agree with single runs within rounding, not bit for bit: a copy's forces are
+evaluated at its place in the shared Context (its beads shifted to their centre of mass, then
+to a grid point), where the sums and the CPU platform's single-precision positions round
+otherwise (``tests/engine/test_copies.py`` measures it).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+import numpy as np
+
+from knotmm.engine.interrupt import StopRequested, stop_signal, take_stop_request
+
+__all__ = ["COPY_PLATFORMS", "CopyGroup", "copies_refusal"]
+
+log = logging.getLogger(__name__)
+
+#: Platforms where the plugin holds copies of a system in one Context.
+COPY_PLATFORMS = ("Reference", "CPU")
+
+
+def copies_refusal(engine: str, platform: str, count: int) -> str | None:
+    """Why ``count`` replicas cannot be stepped as copies of one Context, or None if they can.
+
+    Parameters
+    ----------
+    engine : str
+        The replicas' engine (``"plugin"`` or ``"python"``).
+    platform : str
+        Their OpenMM platform's name.
+    count : int
+    """
+    if count < 2:
+        return "a single run"
+    if engine != "plugin":
+        return "the Python engine steps one system at a time"
+    if platform not in COPY_PLATFORMS:
+        return (f"the plugin holds copies on the {' and '.join(COPY_PLATFORMS)} platforms, "
+                f"not on {platform}")
+    return None
+
+
+class _Stretch:
+    """What a replica hands to the group: where it is, where it must get to."""
+
+    def __init__(self, target, positions, time, state):
+        self.target = float(target)
+        self.positions = positions
+        self.time = float(time)
+        self.state = state
+        self.outcome = None  # set by the round: (positions, time, state, fault) or "stop"
+
+
+class CopyGroup:
+    """K replicas of one run stepped as copies of one Context (module docstring).
+
+    Parameters
+    ----------
+    count : int
+        The replicas; replica k is copy k.
+    chunk_seconds : float
+        Wall-clock seconds of one ``stepCopiesTo`` call: how soon a signal, or a copy
+        whose bonds grew too long, is seen.
+
+    Attributes
+    ----------
+    rounds : int
+        Rounds of stepping so far (each takes every waiting replica to its report time).
+    """
+
+    def __init__(self, count: int, chunk_seconds: float = 0.25):
+        self.count = int(count)
+        self.chunk_seconds = float(chunk_seconds)
+        self.rounds = 0
+        self._cond = threading.Condition()
+        self._live = set(range(self.count))
+        self._members: dict[int, object] = {}  # copy -> the replica's Simulation
+        self._pending: dict[int, _Stretch] = {}
+        self._stepping = False
+        self._signature = None
+        self._rpy = None
+        self._context = None
+        self._pin = None
+
+    # -- membership ---------------------------------------------------------------------
+    def join(self, k: int, sim) -> bool:
+        """Step replica ``k``'s Simulation with the group from now on; False (and replica
+        ``k`` steps alone) where it cannot be a copy of the others."""
+        from knotmm.engine.plugin_engine import PluginEngine
+
+        engine = sim._engine
+        signature = (type(engine).__name__, sim.platform_name, sim.n_beads,
+                     sim.layout.to_record() if hasattr(sim.layout, "to_record") else None,
+                     repr(sim.model), engine.integrator.name)
+        with self._cond:
+            refusal = None
+            if not isinstance(engine, PluginEngine):
+                refusal = "its engine is not the plugin's"
+            elif copies_refusal("plugin", sim.platform_name, self.count):
+                refusal = copies_refusal("plugin", sim.platform_name, self.count)
+            elif self._signature is not None and signature != self._signature:
+                refusal = "its system or integrator differs from the other replicas'"
+            elif self._rpy is not None:
+                refusal = "the copies were built before it joined"
+            if refusal is not None:
+                log.info("replica %d steps alone: %s", k, refusal)
+                self._leave(k)
+                return False
+            self._signature = signature
+            self._members[k] = sim
+            engine.group = self
+            engine.copy_index = k
+            return True
+
+    def leave(self, k: int) -> None:
+        """Replica ``k`` takes no more steps with the group (it ended, or never joined)."""
+        with self._cond:
+            self._leave(k)
+
+    def _leave(self, k: int) -> None:
+        self._live.discard(k)
+        sim = self._members.pop(k, None)
+        if sim is not None:
+            sim._engine.group = None
+        self._cond.notify_all()
+
+    # -- stepping -----------------------------------------------------------------------
+    def advance(self, k: int, sim, target: float):
+        """Hand replica ``k``'s stretch up to ``target`` (tau_d) to the group; wait for it.
+
+        Returns
+        -------
+        tuple or None
+            ``(positions, time, state)`` reached, or None where the copy failed (the replica
+            then takes the stretch alone).
+
+        Raises
+        ------
+        StopRequested
+            A stop asked for by a signal ended the round; the replica holds a whole step.
+        """
+        rpy = sim._engine.rpy
+        stretch = _Stretch(target, sim.positions.copy(), sim.time, rpy.getIntegratorState())
+        with self._cond:
+            self._pending[k] = stretch
+            self._cond.notify_all()
+            while stretch.outcome is None:
+                if not self._stepping and self._pending and set(self._pending) >= self._live:
+                    self._stepping = True
+                    try:
+                        self._round()
+                    finally:
+                        self._stepping = False
+                        self._cond.notify_all()
+                else:
+                    self._cond.wait(0.5)
+        if stretch.outcome == "stop":
+            raise StopRequested(stop_signal())
+        return stretch.outcome
+
+    def _build(self) -> None:
+        """The Context of K copies, from the first member (all members are alike)."""
+        import openmm
+
+        from knotmm.engine.affinity import CorePin
+        from knotmm.model.layout import ChainLayout
+        from knotmm.model.system import chain_system, site_positions
+        from knotmm.plugin import from_python_integrator
+
+        sim = self._members[min(self._members)]
+        engine = sim._engine
+        single = engine.rpy
+        layout = ChainLayout(tuple(sim.layout.lengths) * self.count,
+                             tuple(sim.layout.closed) * self.count)
+        positions = np.vstack([sim.positions] * self.count)
+        system = chain_system(positions, sim.model, layout)
+        rpy = from_python_integrator(engine.integrator, threads=single.getNumThreads(),
+                                     n_beads=sim.n_beads)
+        rpy.setNumCopies(self.count)
+        platform = sim.context.getPlatform()
+        properties = {name: platform.getPropertyValue(sim.context, name)
+                      for name in platform.getPropertyNames()}
+        self._pin = CorePin(sim.core_pin.enabled)
+        with self._pin.creating():
+            self._context = openmm.Context(system, rpy, platform, properties)
+        # OpenMM wants positions before it evaluates; the copies' own come with each round
+        self._context.setPositions(site_positions(positions, sim.model, layout))
+        self._rpy = rpy
+        log.info("%d replicas step as copies of one Context (%s platform)", self.count,
+                 platform.getName())
+
+    def _round(self) -> None:
+        """Take every waiting replica to its target (the caller holds the lock)."""
+        if self._rpy is None:
+            self._build()
+        rpy = self._rpy
+        pending = dict(self._pending)
+        targets = []
+        for k in range(self.count):
+            stretch = pending.get(k)
+            if stretch is None:
+                targets.append(rpy.getCopyTime(k))  # an ended replica's copy stays put
+                continue
+            rpy.clearCopyFault(k)
+            rpy.setCopyPositions(k, stretch.positions.ravel().tolist())
+            rpy.setCopyTime(k, stretch.time)
+            rpy.setCopyState(k, stretch.state)
+            targets.append(stretch.target)
+        stopped = False
+        while True:
+            with self._pin.stepping():
+                reached = rpy.stepCopiesTo(targets, self.chunk_seconds)
+            if reached:
+                break
+            for k, stretch in pending.items():  # a copy running away stops at once
+                if rpy.getCopyFaultKind(k):
+                    continue
+                y = np.asarray(rpy.getCopyPositions(k)).reshape(-1, 3)
+                if not self._members[k]._engine._fine(self._members[k], y):
+                    targets[k] = rpy.getCopyTime(k)
+            if take_stop_request():
+                stopped = True
+                break
+        self.rounds += 1
+        for k, stretch in pending.items():
+            del self._pending[k]
+            if stopped:
+                stretch.outcome = "stop"
+                continue
+            if rpy.getCopyFaultKind(k) or abs(rpy.getCopyTime(k) - stretch.target) > 0.0:
+                log.info("replica %d: its copy stopped at t = %g (%s); it takes the stretch "
+                         "alone", k, rpy.getCopyTime(k),
+                         rpy.getCopyFaultMessage(k) or "bonds beyond run.max_bond_length")
+                stretch.outcome = (None, None, None)
+                continue
+            stretch.outcome = (np.asarray(rpy.getCopyPositions(k)).reshape(-1, 3),
+                               rpy.getCopyTime(k), rpy.getCopyState(k))
