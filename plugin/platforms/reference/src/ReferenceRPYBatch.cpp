@@ -182,7 +182,7 @@ void ReferenceRPYBatch::waitForForces(Copy& c, const vector<double>& y) {
 void ReferenceRPYBatch::evaluateForces(ContextImpl& context) {
     // Each copy at its own grid point: its beads shifted to their centre of mass (as one system
     // alone is evaluated), then moved to the point. The points are farther apart than any two
-    // copies reach plus twice the cutoff; the spacing only ever grows.
+    // copies reach plus twice the cutoff.
     const int count = numCopies();
     vector<const vector<double>*> at(count);
     vector<Vec3> centre(count);
@@ -205,8 +205,13 @@ void ReferenceRPYBatch::evaluateForces(ContextImpl& context) {
     }
     if (!std::isfinite(reach))
         reach = 0.0;  // a copy with non-finite positions fails on its own; the others stay apart
-    if (gridSpacing < 2.0 * reach + margin)
-        gridSpacing = std::max(3.0 * reach + margin, 1.5 * gridSpacing);
+    // The spacing is a function of the copies' reach alone, on a ladder of powers of two:
+    // where a copy sits (and so how its forces round) does not depend on the history of the
+    // batch, only on the bracket of the widest copy now; a resumed batch places it alike.
+    double rung = 1.0;
+    while (rung < reach)
+        rung *= 2.0;
+    gridSpacing = 2.0 * rung + margin;
     vector<Vec3>& pos = *platformData(context).positions;
     const double middle = 0.5 * (gridSide - 1);
     for (int j = 0; j < count; j++) {

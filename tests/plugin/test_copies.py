@@ -1,0 +1,181 @@
+"""K copies of one system in one Context (RPYIntegrator.setNumCopies), held to single runs.
+
+The reference is each copy run alone, in a Context of its own (the plugin's single path,
+itself held to the Python integrators elsewhere): a copy must follow it to rounding, take
+the same steps, keep its own step control beside a copy that needs small steps, not feel
+another copy moved far away, and fail alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import openmm
+import pytest
+
+from knotmm.model.layout import ChainLayout
+from knotmm.model.system import chain_system
+from knotmm.plugin import RPYIntegrator
+from knotmm.shapes import torus_knot
+
+N, K = 30, 3
+
+
+def _starts(k=K, seed=0):
+    x0 = torus_knot(2, 3, N)
+    rng = np.random.default_rng(seed)
+    return [x0 + 0.05 * rng.standard_normal(x0.shape) for _ in range(k)]
+
+
+def _integrator(method, seed=0):
+    if method == "rk23":
+        return RPYIntegrator(0.01, "rk23", threads=1)
+    return RPYIntegrator(0.002, method, threads=1, kT=0.5, seed=seed)
+
+
+def _single(x, method, platform, seed=0):
+    integ = _integrator(method, seed)
+    ctx = openmm.Context(chain_system(x), integ, openmm.Platform.getPlatformByName(platform))
+    ctx.setPositions(x)
+    return integ, ctx
+
+
+def _batch(starts, method, platform, singles=None):
+    k = len(starts)
+    integ = _integrator(method)
+    integ.setNumCopies(k)
+    layout = ChainLayout((N,) * k, (True,) * k)
+    x = np.vstack(starts)
+    ctx = openmm.Context(chain_system(x, layout=layout), integ,
+                         openmm.Platform.getPlatformByName(platform))
+    ctx.setPositions(x)
+    for c, start in enumerate(starts):
+        integ.setCopyPositions(c, start.ravel().tolist())
+        integ.setCopyTime(c, 0.0)
+        if singles is not None:  # the copy's state (seed, step size) is its single run's
+            integ.setCopyState(c, singles[c][0].getIntegratorState())
+    return integ, ctx
+
+
+def _positions(ctx):
+    return ctx.getState(getPositions=True).getPositions(asNumpy=True)._value
+
+
+def _copy(integ, c):
+    return np.array(integ.getCopyPositions(c)).reshape(-1, 3)
+
+
+def _accepted(integ, c, method, platform):
+    """Copy c's accepted steps: its state loaded into a single integrator of its own."""
+    probe, _ctx = _single(_copy(integ, c), method, platform)
+    probe.setIntegratorState(integ.getCopyState(c))
+    return probe.getNumAcceptedSteps()
+
+
+@pytest.mark.parametrize("platform", ["Reference", "CPU"])
+@pytest.mark.parametrize("method", ["rk23", "ito_heun", "ito_heun_adaptive"])
+def test_each_copy_follows_its_single_run(method, platform):
+    starts = _starts()
+    singles = [_single(x, method, platform, seed=10 + c) for c, x in enumerate(starts)]
+    batch, _ = _batch(starts, method, platform, singles)
+    duration = 1.0 if method == "rk23" else 0.2
+    for integ, _ctx in singles:
+        integ.stepTo(duration)
+    assert batch.stepCopiesTo([duration] * K, 1e9)
+    for c, (integ, ctx) in enumerate(singles):
+        assert batch.getCopyTime(c) == duration
+        assert batch.getCopyFaultKind(c) == ""
+        # to rounding: the Reference platform in double, the CPU one's float forces
+        tol = 1e-9 if platform == "Reference" else 1e-4
+        np.testing.assert_allclose(_copy(batch, c), _positions(ctx), rtol=0, atol=tol)
+        if platform == "Reference":  # the same steps, one by one
+            assert _accepted(batch, c, method, platform) == integ.getNumAcceptedSteps()
+    # the copies are different runs (their starts, their noise)
+    assert np.abs(_copy(batch, 0) - _copy(batch, 1)).max() > 1e-3
+
+
+def test_a_copy_that_needs_small_steps_does_not_slow_the_others():
+    starts = _starts()
+    squeezed = starts[0].copy()
+    squeezed[10] = squeezed[20] + [0.45, 0.0, 0.0]  # deep in another bead's steric core
+    starts[0] = squeezed
+    singles = [_single(x, "rk23", "Reference") for x in starts]
+    batch, _ = _batch(starts, "rk23", "Reference", singles)
+    for integ, _ctx in singles:
+        integ.stepTo(0.5)
+    assert batch.stepCopiesTo([0.5] * K, 1e9)
+    counts = [_accepted(batch, c, "rk23", "Reference") for c in range(K)]
+    assert counts == [integ.getNumAcceptedSteps() for integ, _ in singles]
+    assert counts[0] >= 1.5 * max(counts[1:])  # the squeezed copy took many more steps
+
+
+def test_moving_one_copy_far_away_changes_no_other():
+    starts = _starts()
+    moved = [starts[0] + [400.0, -300.0, 1000.0], *starts[1:]]
+    a, _actx = _batch(starts, "rk23", "Reference")  # (a Context kept while its integrator steps)
+    b, _bctx = _batch(moved, "rk23", "Reference")
+    assert a.stepCopiesTo([1.0] * K, 1e9) and b.stepCopiesTo([1.0] * K, 1e9)
+    for c in range(1, K):
+        np.testing.assert_array_equal(_copy(a, c), _copy(b, c))
+    np.testing.assert_allclose(_copy(b, 0) - [400.0, -300.0, 1000.0], _copy(a, 0), atol=1e-9)
+
+
+def test_a_copy_that_fails_leaves_the_others_going():
+    starts = _starts()
+    broken = starts[1].copy()
+    broken[5] = broken[15]  # two beads at one point: the mobility has no Cholesky factor
+    starts[1] = broken
+    batch, _ = _batch(starts, "ito_heun", "Reference")
+    assert batch.stepCopiesTo([0.1] * K, 1e9)  # every copy that has not failed got there
+    assert batch.getCopyFaultKind(1) in ("not_positive_definite", "non_finite")
+    assert batch.getCopyFaultMessage(1)
+    assert batch.getCopyTime(1) == 0.0
+    np.testing.assert_array_equal(_copy(batch, 1), broken)  # its last good state
+    for c in (0, 2):
+        assert batch.getCopyTime(c) == pytest.approx(0.1) and batch.getCopyFaultKind(c) == ""
+
+
+def test_a_budget_ends_a_call_between_steps_and_changes_no_step():
+    starts = _starts()
+    whole, _wctx = _batch(starts, "rk23", "Reference")
+    parts, _pctx = _batch(starts, "rk23", "Reference")
+    assert whole.stepCopiesTo([1.0] * K, 1e9)
+    calls = 1
+    while not parts.stepCopiesTo([1.0] * K, 0.0):  # a step per copy per call
+        calls += 1
+    assert calls > 10
+    for c in range(K):
+        np.testing.assert_array_equal(_copy(parts, c), _copy(whole, c))
+
+
+def test_the_integrator_state_carries_a_run_on_bit_for_bit():
+    x = _starts(1)[0]
+    a, actx = _single(x, "ito_heun_adaptive", "Reference", seed=3)
+    b, bctx = _single(x, "ito_heun_adaptive", "Reference", seed=99)
+    a.stepTo(0.1)
+    b.setIntegratorState(a.getIntegratorState())  # a's noise stream, step size, cache
+    bctx.setPositions(_positions(actx))
+    bctx.setTime(0.1)
+    a.stepTo(0.2)
+    b.stepTo(0.2)
+    np.testing.assert_array_equal(_positions(actx), _positions(bctx))
+
+
+def test_copies_refuse_what_they_cannot_do():
+    integ = _integrator("rk23")
+    integ.setNumCopies(4)
+    layout = ChainLayout((N,) * 3, (True,) * 3)
+    x = np.vstack(_starts())
+    with pytest.raises(openmm.OpenMMException, match="numCopies must divide"):
+        openmm.Context(chain_system(x, layout=layout), integ,
+                       openmm.Platform.getPlatformByName("Reference"))
+    batch, _ctx = _batch(_starts(), "rk23", "Reference")
+    for call in (lambda: batch.step(1), lambda: batch.stepTo(1.0)):
+        with pytest.raises(openmm.OpenMMException, match="stepCopiesTo"):
+            call()
+    with pytest.raises(openmm.OpenMMException, match="2 targets for 3 copies"):
+        batch.stepCopiesTo([1.0] * 2, 1.0)
+    with pytest.raises(openmm.OpenMMException, match="out of range"):
+        batch.getCopyTime(3)
+    single, _sctx = _single(_starts(1)[0], "rk23", "Reference")
+    with pytest.raises(openmm.OpenMMException, match="setNumCopies"):
+        single.getCopyTime(0)
