@@ -155,21 +155,28 @@ def cmd_replicas(args):
                 for k, s in enumerate(seeds)]
         return {"wall": sum(r["wall"] for r in runs), "cpu": sum(r["cpu"] for r in runs)}
 
-    def replicated():
-        return harness.knotmm_run(work / "set", args.duration,
-                                  [*common, f"run.replicas={args.replicas}"], extra)
+    def replicated(stepping):
+        def go():
+            return harness.knotmm_run(work / f"set_{stepping}", args.duration,
+                                      [*common, f"run.replicas={args.replicas}",
+                                       f"run.replica_stepping={stepping}"], extra)
+        return go
 
     k = args.replicas
+    together, apart = f"{k} replicas together", f"{k} replicas one after another"
     samples = harness.interleave({f"{k} single runs": singles,
-                                  f"one run of {k} replicas": replicated},
+                                  together: replicated("auto"),
+                                  apart: replicated("one_after_another")},
                                  args.repeats, log=print)
     summary = _walls(samples)
-    r = harness.ratio(samples, f"one run of {k} replicas", f"{k} single runs", "wall")
-    print(f"median: single runs {summary[f'{k} single runs']['median']:.2f} s, replicas "
-          f"{summary[f'one run of {k} replicas']['median']:.2f} s, ratio {r:.3f} (K = {k}, "
-          f"N = {args.beads}, {args.duration:g} tau_d, Pe = "
+    ratios = {name: harness.ratio(samples, name, f"{k} single runs", "wall")
+              for name in (together, apart)}
+    print(f"median: {k} single runs {summary[f'{k} single runs']['median']:.2f} s, "
+          f"together {summary[together]['median']:.2f} s (ratio {ratios[together]:.3f}), "
+          f"one after another {summary[apart]['median']:.2f} s (ratio {ratios[apart]:.3f}) "
+          f"(N = {args.beads}, {args.duration:g} tau_d, Pe = "
           f"{args.peclet if args.peclet is not None else 'inf'})")
-    return summary, samples, {"ratio": r}
+    return summary, samples, {"ratio": ratios[together], "ratio_one_after_another": ratios[apart]}
 
 
 # -- reporting ------------------------------------------------------------------------------

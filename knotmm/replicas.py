@@ -4,10 +4,17 @@ Each replica is a complete run (:func:`knotmm.workflow.run`) in ``DIR/replica_k/
 (:mod:`knotmm.io.replica_set`), with ``run.replicas = 1`` and its own ``run.seed``: the
 first 32-bit word of ``numpy.random.SeedSequence(run.seed).spawn(K)[k]`` (:func:`replica_seeds`,
 the seeds of a sweep's ensembles too), so replica k equals a single run with that seed, bit
-for bit, and adding replicas keeps the seeds of the others. Nothing couples the copies: each
-has its own System, Context, noise and step control. They run one after another in this
-process, which pays the start-up of Python, OpenMM, the plugin and numba once instead of K
-times (``benchmarks/bench_workflow.py replicas`` measures it against K single runs).
+for bit when it runs alone, and adding replicas keeps the seeds of the others. Nothing
+couples the copies' physics: each has its own System, Context, noise and step control.
+
+Where the plugin can (:func:`knotmm.engine.copies.copies_refusal`: the plugin engine on the
+CPU or Reference platform) the replicas run side by side, each in a thread, and their steps
+are taken together by a :class:`knotmm.engine.copies.CopyGroup`: K copies of the system in
+one Context, one force evaluation for all, each copy its own steps; replica k then equals
+the single run to rounding. Elsewhere they run one after another. Either way the process
+pays the start-up of Python, OpenMM, the plugin and numba once instead of K times
+(``benchmarks/bench_workflow.py replicas`` measures it against K single runs); the choice
+and its reason are in ``replicas.toml`` (``stepping``, ``stepping_reason``).
 
 A replica whose dynamics breaks down (:class:`knotmm.errors.SimulationFault`) is recorded
 as a fault in its run.toml and the others go on; a file that cannot be written (a full disk)
@@ -182,13 +189,19 @@ def _together(count: int, go, errors: dict[int, str], root: Path,
         finally:
             group.leave(k)
 
+    from threadpoolctl import threadpool_limits
+
     threads = [threading.Thread(target=one, args=(k,), name=f"knotmm-replica-{k}", daemon=True)
                for k in range(count)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        while t.is_alive():
-            t.join(0.2)  # the main thread stays free to take signals
+    # BLAS on one thread for the whole set: each run limits it while it steps and puts the
+    # former limit back when it ends, which, with runs ending at their own times, would let
+    # the others factorise with more threads (and round otherwise) from then on
+    with threadpool_limits(limits=1, user_api="blas"):
+        for t in threads:
+            t.start()
+        for t in threads:
+            while t.is_alive():
+                t.join(0.2)  # the main thread stays free to take signals
     take_stop_request()  # asked for by a replica for the others; all have stopped
     if failures:
         stops = [e for e in failures.values() if isinstance(e, KeyboardInterrupt)]
@@ -221,7 +234,8 @@ def _check_replicas(cfg: RunConfig, root: Path, seeds: list[int]) -> str | None:
             built = prepare(sub, identify="skip")
             first, resources = built.template.positions, built.plan.resources
             sim = built.simulation
-            refusal = copies_refusal(sim.engine, sim.platform_name, len(seeds))
+            refusal = copies_refusal(sim.engine, sim.platform_name, len(seeds),
+                                     cfg["run.replica_stepping"])
             continue
         positions = build_template(sub, identify="skip", resources=resources).positions
         if k == 1 and np.array_equal(positions, first):

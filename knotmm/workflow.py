@@ -3,10 +3,8 @@
 The run directory's files are described in :mod:`knotmm.io.rundir`; the simulation and its
 reporters in :mod:`knotmm.engine` (``docs/architecture.md``). :func:`run`, as pseudocode::
 
-    plan the run once (knotmm.plan.prepare): the integrator and step ("auto" resolved), the
-        template, the Simulation, the reasons run.toml records
-        (a bad config, template or platform fails here: nothing written); from here on
-        the run reads the plan's parts, never the run file
+    plan the run once (knotmm.plan.prepare: integrator, template, Simulation, reasons; a
+        bad config fails here, nothing written); then the plan's parts, never the run file
     lock the directory (a live owner: refused); check it, clear it with overwrite
     write topology.pdb, view.vmd, run.toml (status = "running"; a failure removes them)
     attach reporters: trajectory, observables, knot checks, checkpoint, progress
@@ -36,6 +34,7 @@ from knotmm import __version__
 from knotmm.config import RunConfig
 from knotmm.engine.check_record import RECORD_KEY, checks_positions, checks_record, resumed_record
 from knotmm.engine.checkpoint import CheckpointReporter, read_checkpoint
+from knotmm.engine.copies import enter_group, leave_group
 from knotmm.engine.interrupt import StopRequested, describe_signal, stop_signal
 from knotmm.engine.knot_checks import (
     TemplateKnotCheck,
@@ -101,11 +100,8 @@ RESUMABLE_KEYS = frozenset({
 
 
 class OutputFault(SimulationFault):
-    """A file of the run directory could not be written during the run (exit code 3).
-
-    The run stops with ``status = "fault"``; the frames written so far are kept and
-    ``knotmm run --resume`` continues once the cause (a full disk, ...) is gone.
-    """
+    """A file of the run directory could not be written during the run (exit code 3): the
+    run stops (``status = "fault"``), its frames kept; ``knotmm run --resume`` goes on."""
 
 
 @dataclass
@@ -174,8 +170,7 @@ def run(
         recorded as not made (``knot_type_checks_dropped``, a note for the template), so a
         short run does not wait for topoly; ``run.on_topology_change = "stop"`` always waits.
     copies : tuple, optional
-        ``(group, k)``: step as replica ``k`` of a :class:`knotmm.engine.copies.CopyGroup`
-        (:mod:`knotmm.replicas`); the run leaves the group when it ends, however it ends.
+        ``(group, k)``: replica ``k`` of a :class:`knotmm.engine.copies.CopyGroup`.
 
     Returns
     -------
@@ -268,11 +263,9 @@ def resume(
     ----------
     directory : path
         A run directory.
-    progress : bool, optional
-        As for :func:`run`.
     duration : float, optional
         A new ``run.duration``, in tau_d: extends the run (a finished one too).
-    wait_for_checks : bool, optional
+    progress, wait_for_checks, copies : optional
         As for :func:`run`.
 
     Raises
@@ -422,7 +415,7 @@ def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lo
     ``template``: a new run's :class:`knotmm.shapes.builder.Template`, whose knot type is
     judged at the first frame after the knot worker answers (a wrong one stops the run).
     ``resumed``: what a resumed run's checks continue (``check_record.ResumedChecks``).
-    ``copies``: ``(group, k)``, the replica's place in a :class:`knotmm.engine.copies.CopyGroup`.
+    ``copies``: ``(group, k)``, the replica's place in a ``CopyGroup`` (left at the end).
     """
     resuming = counters is not None
     counters = counters or {"frames": 0, "rows": 0, "checkpoints": 0, "checks": 0}
@@ -434,10 +427,7 @@ def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lo
     status, message = STATUS_FAULT, None
     z0 = float(facts.get("start_z", sim.positions[:, 2].mean()))
     steps0 = sim.currentStep
-    if copies is not None:
-        group, k = copies
-        facts["replica_stepping"] = (f"together: copy {k} of {group.count} in one Context"
-                                     if group.join(k, sim) else "alone")
+    enter_group(copies, sim, facts)
     try:
         try:
             with writing(directory / TRAJECTORY_FILE):
@@ -519,8 +509,7 @@ def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lo
             message = " ".join(f"{type(exc).__name__}: {exc}".split())
         raise
     finally:
-        if copies is not None:
-            copies[0].leave(copies[1])
+        leave_group(copies)
         _close(dcd, obs, bar)
         if watch is not None:
             # an interrupted run must end promptly (a sweep repeats its stop signal every

@@ -21,10 +21,14 @@ single engine's checks (:meth:`knotmm.engine.plugin_engine.PluginEngine.advance_
 is then found and reported as in a single run, and the others go on. A stop asked for by a
 signal ends every replica's stretch at a whole step, and each replica writes its checkpoint.
 
-The copies agree with single runs within rounding, not bit for bit: a copy's forces are
-evaluated at its place in the shared Context (its beads shifted to their centre of mass, then
-to a grid point), where the sums and the CPU platform's single-precision positions round
-otherwise (``tests/engine/test_copies.py`` measures it).
+The copies share one place: each is evaluated at its own centre of mass, as a run alone is,
+and the System's steric term acts within each copy only
+(:func:`knotmm.model.system.copies_system`: one interaction group per copy). So a copy's
+forces are those of the copy alone whatever the others do, bit for bit, and a set that was
+stopped resumes to the trajectories of the set never stopped. They agree with single runs to
+rounding, not bit for bit: the grouped steric term (a ``CustomNonbondedForce``) rounds
+otherwise than a single run's ``NonbondedForce`` (``tests/plugin/test_copies.py``,
+``tests/workflow/test_replica_runs.py``).
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ import numpy as np
 
 from knotmm.engine.interrupt import StopRequested, stop_signal, take_stop_request
 
-__all__ = ["COPY_PLATFORMS", "CopyGroup", "copies_refusal"]
+__all__ = ["COPY_PLATFORMS", "CopyGroup", "copies_refusal", "enter_group", "leave_group"]
 
 log = logging.getLogger(__name__)
 
@@ -44,8 +48,9 @@ log = logging.getLogger(__name__)
 COPY_PLATFORMS = ("Reference", "CPU")
 
 
-def copies_refusal(engine: str, platform: str, count: int) -> str | None:
-    """Why ``count`` replicas cannot be stepped as copies of one Context, or None if they can.
+def copies_refusal(engine: str, platform: str, count: int,
+                   stepping: str = "auto") -> str | None:
+    """Why ``count`` replicas are not stepped as copies of one Context, or None if they are.
 
     Parameters
     ----------
@@ -54,15 +59,35 @@ def copies_refusal(engine: str, platform: str, count: int) -> str | None:
     platform : str
         Their OpenMM platform's name.
     count : int
+    stepping : str
+        ``run.replica_stepping``: ``"auto"``, or ``"one_after_another"`` (asked for).
     """
     if count < 2:
         return "a single run"
+    if stepping == "one_after_another":
+        return ('run.replica_stepping = "one_after_another" (each equals its single run bit '
+                'for bit)')
     if engine != "plugin":
         return "the Python engine steps one system at a time"
     if platform not in COPY_PLATFORMS:
         return (f"the plugin holds copies on the {' and '.join(COPY_PLATFORMS)} platforms, "
                 f"not on {platform}")
     return None
+
+
+def enter_group(copies, sim, facts: dict) -> None:
+    """A run as replica ``k`` of ``copies = (group, k)`` (None: a run alone): it joins the
+    group, and ``facts`` (its run.toml's) record how it is stepped."""
+    if copies is not None:
+        group, k = copies
+        facts["replica_stepping"] = (f"together: copy {k} of {group.count} in one Context"
+                                     if group.join(k, sim) else "alone")
+
+
+def leave_group(copies) -> None:
+    """The run of :func:`enter_group` ended (however it ended)."""
+    if copies is not None:
+        copies[0].leave(copies[1])
 
 
 class _Stretch:
@@ -189,23 +214,25 @@ class CopyGroup:
 
         from knotmm.engine.affinity import CorePin
         from knotmm.model.layout import ChainLayout
-        from knotmm.model.system import chain_system, site_positions
+        from knotmm.model.system import copies_system, site_positions
         from knotmm.plugin import from_python_integrator
 
         sim = self._members[min(self._members)]
         engine = sim._engine
-        single = engine.rpy
         layout = ChainLayout(tuple(sim.layout.lengths) * self.count,
                              tuple(sim.layout.closed) * self.count)
         positions = np.vstack([sim.positions] * self.count)
-        system = chain_system(positions, sim.model, layout)
-        rpy = from_python_integrator(engine.integrator, threads=single.getNumThreads(),
+        system = copies_system(sim.positions, sim.model, sim.layout, self.count)
+        # the replicas' RPY threads (run.mobility_threads) share out the copies' mobility
+        # products and noise factorisations (each copy's numbers whatever the threads)
+        rpy = from_python_integrator(engine.integrator, threads=engine.rpy.getNumThreads(),
                                      n_beads=sim.n_beads)
         rpy.setNumCopies(self.count)
+        rpy.setCopiesApart(False)  # each copy where it is alone; the System's groups part them
         platform = sim.context.getPlatform()
         properties = {name: platform.getPropertyValue(sim.context, name)
                       for name in platform.getPropertyNames()}
-        self._pin = CorePin(sim.core_pin.enabled)
+        self._pin = CorePin(sim.core_pin.enabled)  # as the replica's own: OpenMM's pool beside
         with self._pin.creating():
             self._context = openmm.Context(system, rpy, platform, properties)
         # OpenMM wants positions before it evaluates; the copies' own come with each round
@@ -237,7 +264,7 @@ class CopyGroup:
                 reached = rpy.stepCopiesTo(targets, self.chunk_seconds)
             if reached:
                 break
-            for k, stretch in pending.items():  # a copy running away stops at once
+            for k in pending:  # a copy running away stops at once
                 if rpy.getCopyFaultKind(k):
                     continue
                 y = np.asarray(rpy.getCopyPositions(k)).reshape(-1, 3)

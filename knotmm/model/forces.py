@@ -34,7 +34,7 @@ from knotmm.model.layout import ChainLayout
 from knotmm.model.parameters import ChainModel
 
 __all__ = ["FORCE_GROUPS", "FORCE_MAKERS", "bend_force", "bond_force", "gravity_force",
-           "steric_force"]
+           "grouped_steric_force", "steric_force"]
 
 #: Force name -> force group. Per-term energies are read by group.
 FORCE_GROUPS = {"bond": 0, "bend": 1, "steric": 2, "gravity": 3}
@@ -97,6 +97,44 @@ def steric_force(layout: ChainLayout | int, model: ChainModel) -> openmm.Nonbond
                 force.addException(site, bead, 0.0, model.lj_sigma, 0.0)
             if after is not None and after != k:
                 force.addException(site, n_beads + after, 0.0, model.lj_sigma, 0.0)
+    force.setName("steric")
+    return force
+
+
+def grouped_steric_force(layout: ChainLayout, model: ChainModel,
+                         groups) -> openmm.CustomNonbondedForce:
+    """:func:`steric_force`'s term acting only within each group of particles.
+
+    The same truncated Lennard-Jones energy and cutoff, as a ``CustomNonbondedForce`` with
+    one interaction group per entry of ``groups`` and :func:`steric_force`'s exceptions as
+    exclusions: a System holding several copies of one system in one place
+    (:mod:`knotmm.engine.copies`), where each copy must see only itself.
+
+    Parameters
+    ----------
+    layout : ChainLayout
+        The chains of all the copies (and the sites with ``model.segment_repulsion``).
+    model : ChainModel
+    groups : sequence of sequences of int
+        The particles of each copy.
+    """
+    plain = steric_force(layout, model)
+    # constants, not global parameters: the Context's parameters stay those of one copy
+    # alone (the plugin's cached velocity is kept only while they are the same)
+    eps, sigma = float(model.lj_epsilon), float(model.lj_sigma)
+    force = openmm.CustomNonbondedForce(f"{eps!r}*(({sigma!r}/r)^12 - ({sigma!r}/r)^6)")
+    force.setNonbondedMethod(openmm.CustomNonbondedForce.CutoffNonPeriodic)
+    force.setCutoffDistance(model.steric_range)
+    force.setUseSwitchingFunction(False)
+    force.setUseLongRangeCorrection(False)
+    for _ in range(plain.getNumParticles()):
+        force.addParticle([])
+    for e in range(plain.getNumExceptions()):  # every exception is a zeroed pair
+        i, j, *_ = plain.getExceptionParameters(e)
+        force.addExclusion(i, j)
+    for group in groups:
+        members = {int(i) for i in group}
+        force.addInteractionGroup(members, members)
     force.setName("steric")
     return force
 

@@ -20,7 +20,8 @@ from knotmm.model.forces import FORCE_GROUPS, FORCE_MAKERS
 from knotmm.model.layout import ChainLayout
 from knotmm.model.parameters import ChainModel
 
-__all__ = ["FORCE_GROUPS", "SITE_WEIGHTS", "ChainModel", "chain_system", "site_positions"]
+__all__ = ["FORCE_GROUPS", "SITE_WEIGHTS", "ChainModel", "chain_system", "copies_system",
+           "site_positions"]
 
 #: Weights of a bond's two beads in its midpoint site (``model.segment_repulsion``): the
 #: System's ``TwoParticleAverageSite`` and :func:`site_positions` both take them from here.
@@ -81,6 +82,48 @@ def chain_system(
         force = FORCE_MAKERS[name](layout, model)
         force.setForceGroup(group)
         system.addForce(force)
+    return system
+
+
+def copies_system(positions, model: ChainModel, layout: ChainLayout, copies: int) -> openmm.System:
+    """The System of ``copies`` copies of the chains of ``layout``, all in one place.
+
+    :func:`chain_system` of the chains repeated ``copies`` times, its steric term acting
+    within each copy only (:func:`knotmm.model.forces.grouped_steric_force`): copy k's
+    beads are beads ``k n`` to ``(k + 1) n - 1``, its bond midpoints (with
+    ``model.segment_repulsion``) the sites of its bonds. For
+    :meth:`knotmm.plugin.RPYIntegrator.setNumCopies` with ``setCopiesApart(False)``.
+
+    Parameters
+    ----------
+    positions : array_like, shape (n_beads, 3), in d
+        One copy's beads (only their number is used).
+    model : ChainModel
+    layout : ChainLayout
+        One copy's chains.
+    copies : int
+
+    Returns
+    -------
+    openmm.System
+    """
+    from knotmm.model.forces import grouped_steric_force
+
+    n = layout.n_beads
+    repeated = ChainLayout(tuple(layout.lengths) * copies, tuple(layout.closed) * copies)
+    system = chain_system(np.vstack([_check_positions(positions, layout)] * copies), model,
+                          repeated)
+    n_bonds = len(layout.bonds()) if model.segment_repulsion else 0
+    groups = [list(range(k * n, (k + 1) * n))
+              + list(range(copies * n + k * n_bonds, copies * n + (k + 1) * n_bonds))
+              for k in range(copies)]
+    names = [system.getForce(i).getName() for i in range(system.getNumForces())]
+    index = names.index("steric")
+    group = system.getForce(index).getForceGroup()
+    system.removeForce(index)
+    steric = grouped_steric_force(repeated, model, groups)
+    steric.setForceGroup(group)
+    system.addForce(steric)
     return system
 
 

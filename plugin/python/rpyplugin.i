@@ -281,6 +281,8 @@ public:
     double estimateSpectralRadius();
     void setNumCopies(int copies);
     int getNumCopies() const;
+    void setCopiesApart(bool apart);
+    bool getCopiesApart() const;
     bool stepCopiesTo(const std::vector<double>& targets, double maxSeconds);
     std::vector<double> getCopyPositions(int copy) const;
     void setCopyPositions(int copy, const std::vector<double>& positions);

@@ -74,20 +74,21 @@ def test_fixed_step_brownian_replicas_equal_single_runs_with_their_seeds(brownia
     assert "+-" in result.summary() and "3 replicas" in result.summary()
 
 
-def test_one_after_another_replicas_equal_single_runs_bit_for_bit(tmp_path, monkeypatch):
-    # where the copies cannot be stepped together (here: forced), each replica is a single
-    # run of its own, bit for bit, and the set's record says why
-    monkeypatch.setattr(replicas, "copies_refusal", lambda *a: "forced by the test")
+def test_one_after_another_replicas_equal_single_runs_bit_for_bit(tmp_path):
+    # one after another (asked for), each replica is a single run of its own, bit for bit,
+    # and the set's record says why
     cfg = RunConfig.from_dict({**BROWNIAN, "run": {**BROWNIAN["run"], "duration": 0.2,
-                                                   "replicas": 2}})
+                                                   "replicas": 2,
+                                                   "replica_stepping": "one_after_another"}})
     run_replicas(cfg, directory=tmp_path / "set", progress=False)
     record = read_replica_set(tmp_path / "set")["replicas"]
     assert record["stepping"] == "one after another"
-    assert record["stepping_reason"] == "forced by the test"
+    assert "run.replica_stepping" in record["stepping_reason"]
     seed = record["seeds"][1]
     single = tmp_path / "single"
     run(RunConfig.from_dict({**BROWNIAN, "run": {**BROWNIAN["run"], "duration": 0.2,
-                                                 "replicas": 1, "seed": seed}}),
+                                                 "replicas": 1, "seed": seed,
+                                                 "replica_stepping": "one_after_another"}}),
         directory=single, progress=False)
     np.testing.assert_array_equal(_xyz(tmp_path / "set" / "replica_1"), _xyz(single))
     assert "replica_stepping" not in read_facts(tmp_path / "set" / "replica_1")

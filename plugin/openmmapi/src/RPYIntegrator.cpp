@@ -286,6 +286,12 @@ void RPYIntegrator::setNumCopies(int copies) {
     numCopies = copies;
 }
 
+void RPYIntegrator::setCopiesApart(bool apart) {
+    if (owner != nullptr)
+        throw OpenMMException("copiesApart: set it before the Context is created");
+    copiesApart = apart;
+}
+
 RPYCopies& RPYIntegrator::copies() const {
     checkInitialized();
     RPYCopies* c = kernel.getAs<IntegrateRPYStepKernel>().getCopies();

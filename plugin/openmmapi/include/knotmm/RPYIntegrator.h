@@ -151,6 +151,17 @@ public:
      */
     void setNumCopies(int copies);
     int getNumCopies() const { return numCopies; }
+    /**
+     * Whether the integrator keeps the copies apart in space (default true: each copy at
+     * its own point of a grid, farther apart than the copies reach plus twice the largest
+     * cutoff; a System with a plain NonbondedForce needs it). False: every copy is evaluated
+     * at its own centre of mass, where a copy alone is, all copies in the same place; the
+     * System must then keep them from interacting (a CustomNonbondedForce with one
+     * interaction group per copy), and a copy's forces are those of the copy alone, whatever
+     * the others do. Set before the Context is created.
+     */
+    void setCopiesApart(bool apart);
+    bool getCopiesApart() const { return copiesApart; }
     /** RPYCopies::stepTo: every copy towards its own target (ps); true when all are there. */
     bool stepCopiesTo(const std::vector<double>& targets, double maxSeconds);
     /** Copy k's bead positions, 3n numbers, bead-major, in nm. */
@@ -165,7 +176,7 @@ public:
     std::string getCopyFaultKind(int copy) const;
     std::string getCopyFaultMessage(int copy) const;
     void clearCopyFault(int copy);
-    /** Centre-to-centre distance of neighbouring copies in the Context, in nm. */
+    /** Centre-to-centre distance of neighbouring copies in the Context, in nm (0: not apart). */
     double getCopySpacing() const;
     /** The integrator's part of a checkpoint: its layout tag and the step size (ps). */
     static void writeStateHeader(std::ostream& stream, double stepSize);
@@ -191,6 +202,7 @@ private:
     double lanczosTolerance;
     double errorTolerance, beadDiameter, mobility, thermalEnergy, minStepSize, maxStepSize;
     int randomSeed, numThreads, numCopies = 1;
+    bool copiesApart = true;
     std::vector<OpenMM::Vec3> rkcStart;
     OpenMM::Kernel kernel;
     bool kernelReady = false;

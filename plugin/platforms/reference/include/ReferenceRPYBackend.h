@@ -54,6 +54,7 @@ public:
     void upload(const std::vector<double>& host, StateVector& v) override;
 
 protected:
+    bool lanczosNoise() const { return lanczos; }
     /**
      * out = mu(y) F, F the forces of the beads, force[first + b] for bead b (kJ/mol/nm =
      * F0): the mobility half of velocity().

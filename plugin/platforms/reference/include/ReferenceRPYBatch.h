@@ -9,19 +9,29 @@
 // copy still stepping waits for one, the Context evaluates all copies' forces in one call,
 // with each copy moved to its own place on a grid (its centre of mass at a grid point, the
 // points farther apart than the copies are wide plus twice the largest cutoff, so no force
-// reaches from one copy to another), and each copy multiplies its own forces by its own
+// reaches from one copy to another), or, with copiesApart = false, each copy at its own
+// centre of mass as one system alone is evaluated (the System's interaction groups keep the
+// copies apart: a copy's forces are then those of the copy alone, bit for bit whatever the
+// others do), and each copy multiplies its own forces by its own
 // block of the mobility. A copy that lands on its target, or fails, waits while the others
-// go on. Nothing runs in parallel: the fibers take turns on the calling thread.
+// go on. The fibers take turns on the calling thread; what they wait for, the mobility
+// products and the Cholesky factorisations of all copies, is shared out over the
+// integrator's threads (each copy's numbers are the same whatever the threads).
 
 #include "ReferenceRPYBackend.h"
 #include "knotmm/RPYKernels.h"
 #include "knotmm/stepper/Stepper.h"
 
 #include <chrono>
+#include <exception>
 #include <memory>
 #include <string>
 #include <ucontext.h>
 #include <vector>
+
+namespace OpenMM {
+class ThreadPool;
+}
 
 namespace KnotMM {
 
@@ -37,6 +47,13 @@ public:
     void velocity(OpenMM::ContextImpl& context, const StateVector& y, StateVector& v) override;
     void groupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
                        std::vector<double>& energies) override;
+    /** Cholesky: factorised by the batch, beside the other copies' work; Lanczos: as alone. */
+    void factorNoise(const StateVector& y) override;
+    /** The batch's jobs for this copy, run on one of its threads. */
+    void velocityJob(const std::vector<double>& y, const std::vector<OpenMM::Vec3>& forces, std::vector<double>& out) {
+        mobilityTimes(y, forces, 0, out);
+    }
+    void factorJob(const std::vector<double>& y);
 
 private:
     ReferenceRPYBatch& batch;
@@ -46,6 +63,7 @@ private:
 class ReferenceRPYBatch : public RPYCopies {
 public:
     ReferenceRPYBatch(const OpenMM::System& system, const RPYIntegrator& integrator);
+    ~ReferenceRPYBatch();
     int numCopies() const override { return (int) copies.size(); }
     int beadsPerCopy() const override { return n; }
     bool stepTo(OpenMM::ContextImpl& context, RPYIntegrator& integrator, const std::vector<double>& targets,
@@ -63,7 +81,7 @@ public:
 
 private:
     friend class CopyBackend;
-    enum class State { Idle, Runnable, WaitingForForces, Done };
+    enum class State { Idle, Runnable, WaitingForForces, WaitingForFactor, Done };
     struct Copy {
         std::unique_ptr<RPYIntegrator> settings;  // step size and settings of this copy alone
         std::unique_ptr<CopyBackend> backend;
@@ -73,6 +91,8 @@ private:
         State state = State::Idle;
         const std::vector<double>* request = nullptr;  // where the copy wants its forces
         std::vector<OpenMM::Vec3> forces;              // its beads' forces at `request`
+        std::vector<double> velocity;                  // mu F at `request` (the batch's job)
+        std::exception_ptr jobError;                   // the job's failure, rethrown in the fiber
         std::string faultKind, faultMessage;
         ucontext_t fiber;
         std::unique_ptr<char[]> stack;
@@ -82,11 +102,16 @@ private:
     void runCopy(Copy& c);
     /** Called by a copy's fiber: wait for the forces at y; then c.forces hold them. */
     void waitForForces(Copy& c, const std::vector<double>& y);
+    /** Called by a copy's fiber: wait until its noise factor at y is made. */
+    void waitForFactor(Copy& c, const std::vector<double>& y);
     void evaluateForces(OpenMM::ContextImpl& context);
+    /** The waiting copies' mobility products and factorisations, shared out over the threads. */
+    void runJobs();
     int n = 0;                          // beads per copy
     std::vector<int> beadParticle;      // bead (all copies) -> particle
     bool hasVirtualSites = false;
     double margin = 1.0;                // nm: twice the largest nonbonded cutoff
+    bool apart = true;                  // copies on a grid (else each at its centre of mass)
     double gridSpacing = 0.0;           // nm: 0 until the first evaluation sets it
     int gridSide = 1;
     std::vector<std::unique_ptr<Copy>> copies;
@@ -94,6 +119,7 @@ private:
     Copy* running = nullptr;
     OpenMM::ContextImpl* context = nullptr;
     std::string forceError;             // the last evaluation's failure, "" when it succeeded
+    std::unique_ptr<OpenMM::ThreadPool> pool;  // the integrator's threads, over the copies
     std::chrono::steady_clock::time_point start;
     double budget = 0.0;
 };

@@ -8,11 +8,14 @@
 #include "openmm/OpenMMException.h"
 #include "openmm/System.h"
 #include "openmm/internal/ContextImpl.h"
+#include "openmm/internal/ThreadPool.h"
 #include "openmm/reference/ReferencePlatform.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 
 using namespace OpenMM;
 using namespace KnotMM;
@@ -53,8 +56,22 @@ void CopyBackend::setPositions(ContextImpl&, const StateVector& y) { batch.copie
 
 void CopyBackend::velocity(ContextImpl&, const StateVector& y, StateVector& v) {
     ReferenceRPYBatch::Copy& c = *batch.copies[copy];
-    batch.waitForForces(c, data(y));
-    mobilityTimes(data(y), c.forces, 0, data(v));
+    batch.waitForForces(c, data(y));  // forces and mu F made by the batch
+    data(v) = c.velocity;
+}
+
+void CopyBackend::factorNoise(const StateVector& y) {
+    if (lanczosNoise()) {
+        ReferenceRPYBackend::factorNoise(y);  // matrix-free: nothing to share out
+        return;
+    }
+    batch.waitForFactor(*batch.copies[copy], data(y));
+}
+
+void CopyBackend::factorJob(const vector<double>& y) {
+    ReferenceVector at(3 * numBeads());
+    at.a = y;
+    ReferenceRPYBackend::factorNoise(at);
 }
 
 void CopyBackend::groupEnergies(ContextImpl&, const vector<int>&, vector<double>&) {
@@ -77,15 +94,26 @@ ReferenceRPYBatch::ReferenceRPYBatch(const System& system, const RPYIntegrator& 
                               std::to_string(count) + " copies of one system (numCopies must divide the beads)");
     n = (int) beadParticle.size() / count;
     double cutoff = 0.0;
+    apart = integrator.getCopiesApart();
     for (int f = 0; f < system.getNumForces(); f++) {
         const Force& force = system.getForce(f);
         if (const NonbondedForce* nb = dynamic_cast<const NonbondedForce*>(&force)) {
+            if (!apart)
+                throw OpenMMException("RPYIntegrator: copies in one place (copiesApart = false) would all "
+                                      "interact through a NonbondedForce; use a CustomNonbondedForce with "
+                                      "one interaction group per copy, or keep the copies apart");
             if (nb->getNonbondedMethod() == NonbondedForce::NoCutoff)
                 throw OpenMMException("RPYIntegrator: copies of a system need a cutoff on every nonbonded "
                                       "force (a NonbondedForce without one couples the copies)");
             cutoff = std::max(cutoff, nb->getCutoffDistance());
         }
         if (const CustomNonbondedForce* nb = dynamic_cast<const CustomNonbondedForce*>(&force)) {
+            if (!apart) {
+                if (nb->getNumInteractionGroups() < count)
+                    throw OpenMMException("RPYIntegrator: copies in one place (copiesApart = false) need one "
+                                          "interaction group per copy in every CustomNonbondedForce");
+                continue;
+            }
             if (nb->getNonbondedMethod() == CustomNonbondedForce::NoCutoff)
                 throw OpenMMException("RPYIntegrator: copies of a system need a cutoff on every nonbonded "
                                       "force (a CustomNonbondedForce without one couples the copies)");
@@ -93,6 +121,8 @@ ReferenceRPYBatch::ReferenceRPYBatch(const System& system, const RPYIntegrator& 
         }
     }
     margin = std::max(1.0, 2.0 * cutoff);
+    if (integrator.getNumThreads() > 1)
+        pool.reset(new ThreadPool(integrator.getNumThreads()));
     while (gridSide * gridSide * gridSide < count)
         gridSide++;
     const vector<Vec3>& start = integrator.getSpectralRadiusStartVector();
@@ -101,6 +131,7 @@ ReferenceRPYBatch::ReferenceRPYBatch(const System& system, const RPYIntegrator& 
         std::unique_ptr<Copy> c(new Copy());
         c->settings.reset(new RPYIntegrator(integrator.getStepSize(), method.name, integrator.getErrorTolerance()));
         copySettings(integrator, *c->settings);
+        c->settings->setNumThreads(1);
         c->settings->setRandomNumberSeed(integrator.getRandomNumberSeed());
         if (!start.empty())
             c->settings->setSpectralRadiusStartVector(vector<Vec3>(start.begin() + k * n, start.begin() + (k + 1) * n));
@@ -108,10 +139,13 @@ ReferenceRPYBatch::ReferenceRPYBatch(const System& system, const RPYIntegrator& 
         c->stepper.reset(new Stepper(*c->backend, *c->settings));
         c->positions.assign(3 * n, 0.0);
         c->forces.assign(n, Vec3());
+        c->velocity.assign(3 * n, 0.0);
         c->stack.reset(new char[FIBER_STACK_BYTES]);
         copies.push_back(std::move(c));
     }
 }
+
+ReferenceRPYBatch::~ReferenceRPYBatch() {}
 
 void ReferenceRPYBatch::setPositions(int copy, const vector<double>& positions) {
     copies[copy]->positions = positions;
@@ -177,6 +211,46 @@ void ReferenceRPYBatch::waitForForces(Copy& c, const vector<double>& y) {
     c.request = nullptr;
     if (!forceError.empty())
         throw OpenMMException(forceError);
+    if (c.jobError)
+        std::rethrow_exception(std::exchange(c.jobError, nullptr));
+}
+
+void ReferenceRPYBatch::waitForFactor(Copy& c, const vector<double>& y) {
+    c.request = &y;
+    c.state = State::WaitingForFactor;
+    swapcontext(&c.fiber, &scheduler);
+    c.request = nullptr;
+    if (c.jobError)
+        std::rethrow_exception(std::exchange(c.jobError, nullptr));
+}
+
+void ReferenceRPYBatch::runJobs() {
+    vector<Copy*> jobs;
+    for (auto& copy : copies)
+        if ((copy->state == State::WaitingForForces && forceError.empty()) || copy->state == State::WaitingForFactor)
+            jobs.push_back(copy.get());
+    auto work = [&](Copy& c) {
+        try {
+            if (c.state == State::WaitingForForces)
+                c.backend->velocityJob(*c.request, c.forces, c.velocity);
+            else
+                c.backend->factorJob(*c.request);
+        }
+        catch (...) {
+            c.jobError = std::current_exception();
+        }
+    };
+    if (!pool || jobs.size() < 2) {
+        for (Copy* c : jobs)
+            work(*c);
+        return;
+    }
+    std::atomic<size_t> next(0);
+    pool->execute([&](ThreadPool&, int) {
+        for (size_t j = next++; j < jobs.size(); j = next++)
+            work(*jobs[j]);
+    });
+    pool->waitForThreads();
 }
 
 void ReferenceRPYBatch::evaluateForces(ContextImpl& context) {
@@ -211,7 +285,7 @@ void ReferenceRPYBatch::evaluateForces(ContextImpl& context) {
     double rung = 1.0;
     while (rung < reach)
         rung *= 2.0;
-    gridSpacing = 2.0 * rung + margin;
+    gridSpacing = apart ? 2.0 * rung + margin : 0.0;
     vector<Vec3>& pos = *platformData(context).positions;
     const double middle = 0.5 * (gridSide - 1);
     for (int j = 0; j < count; j++) {
@@ -262,6 +336,7 @@ bool ReferenceRPYBatch::stepTo(ContextImpl& contextRef, RPYIntegrator& integrato
         }
         const double h = c.settings->getStepSize();
         copySettings(integrator, *c.settings);
+        c.settings->setNumThreads(1);  // the batch's threads share out the copies instead
         c.settings->setStepSize(h);
         c.target = targets[k];
         c.state = State::Idle;
@@ -283,14 +358,18 @@ bool ReferenceRPYBatch::stepTo(ContextImpl& contextRef, RPYIntegrator& integrato
             swapcontext(&scheduler, &c.fiber);  // back when it waits for forces or is done
             running = nullptr;
         }
-        bool waiting = false;
-        for (auto& copy : copies)
-            waiting = waiting || copy->state == State::WaitingForForces;
-        if (!waiting)
+        bool forces = false, factors = false;
+        for (auto& copy : copies) {
+            forces = forces || copy->state == State::WaitingForForces;
+            factors = factors || copy->state == State::WaitingForFactor;
+        }
+        if (!forces && !factors)
             break;
-        evaluateForces(contextRef);
+        if (forces)
+            evaluateForces(contextRef);
+        runJobs();
         for (auto& copy : copies)
-            if (copy->state == State::WaitingForForces)
+            if (copy->state == State::WaitingForForces || copy->state == State::WaitingForFactor)
                 copy->state = State::Runnable;
     }
     bool reached = true;
