@@ -169,43 +169,56 @@ _TOGETHER = ("the replicas are copies of one system in one OpenMM Context: one f
              "evaluation for all, each its own steps (knotmm.engine.copies)")
 
 
-def _together(count: int, go, errors: dict[int, str], root: Path,
-              group: CopyGroup) -> list[RunResult | None]:
-    """Run replica k's ``go(k)`` in a thread of its own, all at once, stepping as copies of
-    ``group``; wait for all. A replica that ends, however it ends, leaves the group; a stop
-    asked for by a signal stops them all (each writes its checkpoint). The first failure
-    (an interruption first) is raised once every replica has ended."""
+#: Most replicas stepped together in one Context: a larger set runs in groups of at most this
+#: many, as equal as can be, one group after another (each replica holds a thread, a Context
+#: of its own and its open files while its group runs).
+MAX_TOGETHER = 64
+
+
+def _together(count: int, go, errors: dict[int, str],
+              root: Path) -> list[RunResult | None]:
+    """Run the replicas in groups of at most :data:`MAX_TOGETHER`, each group's replicas
+    side by side, in a thread each, stepped as the copies of one
+    :class:`~knotmm.engine.copies.CopyGroup`: replica k runs ``go(k, (group, copy))``. A
+    replica that ends, however it ends, leaves its group; a stop asked for by a signal
+    stops them all (each writes its checkpoint) and no later group starts. The first
+    failure (an interruption first) is raised once every replica of the group has ended."""
+    from threadpoolctl import threadpool_limits
+
     results: list[RunResult | None] = [None] * count
     failures: dict[int, BaseException] = {}
 
-    def one(k):
+    def one(k, group, copy):
         try:
-            results[k] = _one(k, lambda: go(k), errors, root)
+            results[k] = _one(k, lambda: go(k, (group, copy)), errors, root)
         except StopRequested as exc:
             failures[k] = exc
             request_stop()  # the others stop at their next step too
         except BaseException as exc:  # noqa: BLE001 - raised below, in the caller's thread
             failures[k] = exc
         finally:
-            group.leave(k)
+            group.leave(copy)
 
-    from threadpoolctl import threadpool_limits
-
-    threads = [threading.Thread(target=one, args=(k,), name=f"knotmm-replica-{k}", daemon=True)
-               for k in range(count)]
     # BLAS on one thread for the whole set: each run limits it while it steps and puts the
     # former limit back when it ends, which, with runs ending at their own times, would let
     # the others factorise with more threads (and round otherwise) from then on
     with threadpool_limits(limits=1, user_api="blas"):
-        for t in threads:
-            t.start()
-        for t in threads:
-            while t.is_alive():
-                t.join(0.2)  # the main thread stays free to take signals
-    take_stop_request()  # asked for by a replica for the others; all have stopped
-    if failures:
-        stops = [e for e in failures.values() if isinstance(e, KeyboardInterrupt)]
-        raise stops[0] if stops else failures[min(failures)]
+        groups = -(-count // MAX_TOGETHER)  # of sizes that differ by one at most
+        for g in range(groups):
+            first = count * g // groups
+            members = range(first, count * (g + 1) // groups)
+            group = CopyGroup(len(members))
+            threads = [threading.Thread(target=one, args=(k, group, k - first), daemon=True,
+                                        name=f"knotmm-replica-{k}") for k in members]
+            for t in threads:
+                t.start()
+            for t in threads:
+                while t.is_alive():
+                    t.join(0.2)  # the main thread stays free to take signals
+            take_stop_request()  # asked for by a replica for the others; all have stopped
+            if failures:
+                stops = [e for e in failures.values() if isinstance(e, KeyboardInterrupt)]
+                raise stops[0] if stops else failures[min(failures)]
     return results
 
 
@@ -380,17 +393,15 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
                     root.rmdir()
             raise
         if refusal is None:
-            group = CopyGroup(count)
-
-            def go(k):
+            def go(k, copies):
                 where = replica_directory(root, k)
                 return run(_replica_config(cfg, seeds[k], where), directory=where,
                            overwrite=overwrite, progress=progress if k == 0 else False,
-                           wait_for_checks=wait_for_checks, copies=(group, k))
+                           wait_for_checks=wait_for_checks, copies=copies)
 
             log.info("%d replicas stepped together in %s", count, root)
             try:
-                results = _together(count, go, errors, root, group)
+                results = _together(count, go, errors, root)
             except (ValueError, RunDirectoryError):
                 if not any((replica_directory(root, k) / RUN_FILE).exists()
                            for k in range(count)):
@@ -455,10 +466,9 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     stepping = record["replicas"].get("stepping", "one after another")
     try:
         if stepping == "together" and len(seeds) > 1:
-            group = CopyGroup(len(seeds))
-            results = _together(len(seeds), lambda k: _resume_one(
+            results = _together(len(seeds), lambda k, copies: _resume_one(
                 root, k, seeds[k], cfg, target, duration, progress if k == 0 else False,
-                wait_for_checks, (group, k)), errors, root, group)
+                wait_for_checks, copies), errors, root)
         for k, seed in enumerate(seeds if not (stepping == "together" and len(seeds) > 1)
                                  else []):
             where = replica_directory(root, k)

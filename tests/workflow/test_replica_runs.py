@@ -94,6 +94,22 @@ def test_one_after_another_replicas_equal_single_runs_bit_for_bit(tmp_path):
     assert "replica_stepping" not in read_facts(tmp_path / "set" / "replica_1")
 
 
+def test_a_large_set_steps_in_groups_one_after_another(tmp_path, monkeypatch, brownian_set):
+    # at most MAX_TOGETHER replicas share a Context; the replicas are the same runs
+    monkeypatch.setattr(replicas, "MAX_TOGETHER", 2)
+    root = tmp_path / "set"
+    cfg = RunConfig.from_dict({**BROWNIAN, "run": {**BROWNIAN["run"], "replicas": 4}})
+    result = run_replicas(cfg, directory=root, progress=False)
+    assert not result.errors
+    stepping = [read_facts(root / f"replica_{k}")["replica_stepping"] for k in range(4)]
+    assert stepping == [f"together: copy {k % 2} of 2 in one Context" for k in range(4)]
+    # a copy's forces are its own: replica k (k < 3, the same seed in a set of 3 or 4) takes
+    # the same trajectory in a group of 2 as in the set of 3
+    for k in range(3):
+        np.testing.assert_array_equal(_xyz(root / f"replica_{k}"),
+                                      _xyz(brownian_set[0] / f"replica_{k}"))
+
+
 def test_the_set_is_analysed_as_one_point(brownian_set):
     root, _ = brownian_set
     out = analyze_sweep(root, plots=False, knot_samples=0)
