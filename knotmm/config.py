@@ -204,10 +204,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
             "DIR/replica_0 ... (each seeded from run.seed; knotmm.replicas)", 1,
             limits.MAX_REPLICAS, why=limits.REPLICAS_WHY,
         ),
-        "replica_stepping": Key("str", "auto", "auto (together as copies of one Context where "
-                                "the plugin can) or one_after_another (each replica equal to "
-                                "its single run bit for bit)",
-                                choices=("auto", "one_after_another")),
+        "replica_stepping": Key("str", "auto", "together (copies of one Context, where the "
+                                "plugin can), one_after_another (each equal to its single run "
+                                "bit for bit), or auto (together where measured faster)",
+                                choices=("auto", "together", "one_after_another")),
         "noise": Key(
             "str", "auto",
             "Brownian noise sqrt(mu) xi: auto (cholesky up to 300 beads, else lanczos), "

@@ -248,7 +248,8 @@ def _check_replicas(cfg: RunConfig, root: Path, seeds: list[int]) -> str | None:
             first, resources = built.template.positions, built.plan.resources
             sim = built.simulation
             refusal = copies_refusal(sim.engine, sim.platform_name, len(seeds),
-                                     cfg["run.replica_stepping"])
+                                     cfg["run.replica_stepping"], sim.n_beads,
+                                     math.isfinite(cfg["run.peclet"]))
             continue
         positions = build_template(sub, identify="skip", resources=resources).positions
         if k == 1 and np.array_equal(positions, first):

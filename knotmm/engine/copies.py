@@ -40,7 +40,8 @@ import numpy as np
 
 from knotmm.engine.interrupt import StopRequested, stop_signal, take_stop_request
 
-__all__ = ["COPY_PLATFORMS", "CopyGroup", "copies_refusal", "enter_group", "leave_group"]
+__all__ = ["COPY_PLATFORMS", "TOGETHER_MAX_BEADS", "CopyGroup", "copies_refusal", "enter_group",
+           "leave_group"]
 
 log = logging.getLogger(__name__)
 
@@ -48,8 +49,17 @@ log = logging.getLogger(__name__)
 COPY_PLATFORMS = ("Reference", "CPU")
 
 
-def copies_refusal(engine: str, platform: str, count: int,
-                   stepping: str = "auto") -> str | None:
+#: Largest replica (in beads) stepped together by default, Brownian and deterministic: above,
+#: the copies' interleaved work (Cholesky factors and mobility matrices of 8 copies in turn,
+#: the grouped steric term's pairs) costs more than one OpenMM call per copy saves
+#: (``benchmarks/README.md``, ``replicas``; 8 replicas, 10 tau_d at Pe = 2: 0.80x, 0.87x,
+#: 1.08x, 1.20x the wall time of one after another at N = 40, 60, 90, 120; 40 tau_d at
+#: Pe = inf: 0.94x, 0.99x, 1.53x at N = 90, 120, 240).
+TOGETHER_MAX_BEADS = {"brownian": 79, "deterministic": 120}
+
+
+def copies_refusal(engine: str, platform: str, count: int, stepping: str = "auto",
+                   n_beads: int = 0, brownian: bool = False) -> str | None:
     """Why ``count`` replicas are not stepped as copies of one Context, or None if they are.
 
     Parameters
@@ -60,7 +70,11 @@ def copies_refusal(engine: str, platform: str, count: int,
         Their OpenMM platform's name.
     count : int
     stepping : str
-        ``run.replica_stepping``: ``"auto"``, or ``"one_after_another"`` (asked for).
+        ``run.replica_stepping``: ``"auto"``, ``"together"`` or ``"one_after_another"``.
+    n_beads : int
+        Beads of one replica.
+    brownian : bool
+        Finite ``run.peclet``.
     """
     if count < 2:
         return "a single run"
@@ -72,6 +86,11 @@ def copies_refusal(engine: str, platform: str, count: int,
     if platform not in COPY_PLATFORMS:
         return (f"the plugin holds copies on the {' and '.join(COPY_PLATFORMS)} platforms, "
                 f"not on {platform}")
+    kind = "brownian" if brownian else "deterministic"
+    if stepping == "auto" and n_beads > TOGETHER_MAX_BEADS[kind]:
+        return (f"measured faster one after another for {kind} replicas of more than "
+                f"{TOGETHER_MAX_BEADS[kind]} beads (benchmarks/README.md, replicas); "
+                f'run.replica_stepping = "together" steps them together')
     return None
 
 
@@ -146,8 +165,8 @@ class CopyGroup:
             refusal = None
             if not isinstance(engine, PluginEngine):
                 refusal = "its engine is not the plugin's"
-            elif copies_refusal("plugin", sim.platform_name, self.count):
-                refusal = copies_refusal("plugin", sim.platform_name, self.count)
+            elif copies_refusal("plugin", sim.platform_name, self.count, "together"):
+                refusal = copies_refusal("plugin", sim.platform_name, self.count, "together")
             elif self._signature is not None and signature != self._signature:
                 refusal = "its system or integrator differs from the other replicas'"
             elif self._rpy is not None:

@@ -94,6 +94,21 @@ def test_one_after_another_replicas_equal_single_runs_bit_for_bit(tmp_path):
     assert "replica_stepping" not in read_facts(tmp_path / "set" / "replica_1")
 
 
+@pytest.mark.parametrize(("stepping", "together"), [("auto", False), ("together", True)])
+def test_auto_steps_together_only_where_measured_faster(tmp_path, stepping, together):
+    # Brownian replicas of 90 beads: one after another was measured faster (auto), unless
+    # asked for
+    cfg = RunConfig.from_dict({**BROWNIAN, "knot": {"beads": 90},
+                               "run": {**BROWNIAN["run"], "duration": 0.02, "replicas": 2,
+                                       "replica_stepping": stepping}})
+    run_replicas(cfg, directory=tmp_path / "set", progress=False)
+    record = read_replica_set(tmp_path / "set")["replicas"]
+    assert (record["stepping"] == "together") == together
+    if not together:
+        assert "measured faster one after another" in record["stepping_reason"]
+        assert "79 beads" in record["stepping_reason"]
+
+
 def test_a_large_set_steps_in_groups_one_after_another(tmp_path, monkeypatch, brownian_set):
     # at most MAX_TOGETHER replicas share a Context; the replicas are the same runs
     monkeypatch.setattr(replicas, "MAX_TOGETHER", 2)

@@ -61,8 +61,10 @@ void CopyBackend::velocity(ContextImpl&, const StateVector& y, StateVector& v) {
 }
 
 void CopyBackend::factorNoise(const StateVector& y) {
-    if (lanczosNoise()) {
-        ReferenceRPYBackend::factorNoise(y);  // matrix-free: nothing to share out
+    if (lanczosNoise() || !batch.pool) {
+        // matrix-free, or no threads to share it out: factorised here, where the copy's
+        // next steps use the factor while it is still in the cache
+        ReferenceRPYBackend::factorNoise(y);
         return;
     }
     batch.waitForFactor(*batch.copies[copy], data(y));
