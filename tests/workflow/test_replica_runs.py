@@ -99,7 +99,7 @@ def test_auto_steps_together_only_where_measured_faster(tmp_path, stepping, toge
     # Brownian replicas of 90 beads: one after another was measured faster (auto), unless
     # asked for
     cfg = RunConfig.from_dict({**BROWNIAN, "knot": {"beads": 90},
-                               "run": {**BROWNIAN["run"], "duration": 0.02, "replicas": 2,
+                               "run": {**BROWNIAN["run"], "duration": 0.05, "replicas": 2,
                                        "replica_stepping": stepping}})
     run_replicas(cfg, directory=tmp_path / "set", progress=False)
     record = read_replica_set(tmp_path / "set")["replicas"]
