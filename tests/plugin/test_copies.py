@@ -26,10 +26,10 @@ def _starts(k=K, seed=0):
     return [x0 + 0.05 * rng.standard_normal(x0.shape) for _ in range(k)]
 
 
-def _integrator(method, seed=0):
+def _integrator(method, seed=0, threads=1):
     if method == "rk23":
-        return RPYIntegrator(0.01, "rk23", threads=1)
-    return RPYIntegrator(0.002, method, threads=1, kT=0.5, seed=seed)
+        return RPYIntegrator(0.01, "rk23", threads=threads)
+    return RPYIntegrator(0.002, method, threads=threads, kT=0.5, seed=seed)
 
 
 def _single(x, method, platform, seed=0):
@@ -39,9 +39,9 @@ def _single(x, method, platform, seed=0):
     return integ, ctx
 
 
-def _batch(starts, method, platform, singles=None):
+def _batch(starts, method, platform, singles=None, threads=1):
     k = len(starts)
-    integ = _integrator(method)
+    integ = _integrator(method, threads=threads)
     integ.setNumCopies(k)
     layout = ChainLayout((N,) * k, (True,) * k)
     x = np.vstack(starts)
@@ -132,6 +132,17 @@ def test_a_copy_that_fails_leaves_the_others_going():
     np.testing.assert_array_equal(_copy(batch, 1), broken)  # its last good state
     for c in (0, 2):
         assert batch.getCopyTime(c) == pytest.approx(0.1) and batch.getCopyFaultKind(c) == ""
+
+
+def test_threads_share_out_the_copies_and_change_no_number():
+    starts = _starts(4)
+    singles = [_single(x, "ito_heun_adaptive", "Reference", seed=20 + c)
+               for c, x in enumerate(starts)]
+    one, _one_ctx = _batch(starts, "ito_heun_adaptive", "Reference", singles)
+    two, _two_ctx = _batch(starts, "ito_heun_adaptive", "Reference", singles, threads=2)
+    assert one.stepCopiesTo([0.2] * 4, 1e9) and two.stepCopiesTo([0.2] * 4, 1e9)
+    for c in range(4):
+        np.testing.assert_array_equal(_copy(two, c), _copy(one, c))
 
 
 def test_a_budget_ends_a_call_between_steps_and_changes_no_step():

@@ -27,6 +27,9 @@
 #include <memory>
 #include <string>
 #include <ucontext.h>
+#ifdef __linux__
+#include <sched.h>
+#endif
 #include <vector>
 
 namespace OpenMM {
@@ -107,6 +110,7 @@ private:
     void evaluateForces(OpenMM::ContextImpl& context);
     /** The waiting copies' mobility products and factorisations, shared out over the threads. */
     void runJobs();
+    void startThreads();
     int n = 0;                          // beads per copy
     std::vector<int> beadParticle;      // bead (all copies) -> particle
     bool hasVirtualSites = false;
@@ -119,7 +123,11 @@ private:
     Copy* running = nullptr;
     OpenMM::ContextImpl* context = nullptr;
     std::string forceError;             // the last evaluation's failure, "" when it succeeded
-    std::unique_ptr<OpenMM::ThreadPool> pool;  // the integrator's threads, over the copies
+    int threads = 1;                            // the integrator's, over the copies
+    std::unique_ptr<OpenMM::ThreadPool> pool;  // made at the first jobs (startThreads)
+#ifdef __linux__
+    cpu_set_t cores;                            // the process's cores when the batch was made
+#endif
     std::chrono::steady_clock::time_point start;
     double budget = 0.0;
 };

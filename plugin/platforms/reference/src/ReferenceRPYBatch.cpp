@@ -16,6 +16,9 @@
 #include <cmath>
 #include <cstdint>
 #include <utility>
+#ifdef __linux__
+#include <sched.h>
+#endif
 
 using namespace OpenMM;
 using namespace KnotMM;
@@ -61,7 +64,7 @@ void CopyBackend::velocity(ContextImpl&, const StateVector& y, StateVector& v) {
 }
 
 void CopyBackend::factorNoise(const StateVector& y) {
-    if (lanczosNoise() || !batch.pool) {
+    if (lanczosNoise() || batch.threads < 2) {
         // matrix-free, or no threads to share it out: factorised here, where the copy's
         // next steps use the factor while it is still in the cache
         ReferenceRPYBackend::factorNoise(y);
@@ -123,8 +126,12 @@ ReferenceRPYBatch::ReferenceRPYBatch(const System& system, const RPYIntegrator& 
         }
     }
     margin = std::max(1.0, 2.0 * cutoff);
-    if (integrator.getNumThreads() > 1)
-        pool.reset(new ThreadPool(integrator.getNumThreads()));
+    threads = integrator.getNumThreads();
+#ifdef __linux__
+    CPU_ZERO(&cores);
+    if (sched_getaffinity(0, sizeof(cores), &cores) != 0)
+        CPU_ZERO(&cores);
+#endif
     while (gridSide * gridSide * gridSide < count)
         gridSide++;
     const vector<Vec3>& start = integrator.getSpectralRadiusStartVector();
@@ -226,6 +233,19 @@ void ReferenceRPYBatch::waitForFactor(Copy& c, const vector<double>& y) {
         std::rethrow_exception(std::exchange(c.jobError, nullptr));
 }
 
+void ReferenceRPYBatch::startThreads() {
+    // Made at the first jobs, after the Context: a caller that keeps OpenMM's CPU-platform
+    // thread on its own core (knotmm's CorePin) does not count these among OpenMM's; each
+    // takes the cores the process had when the batch was made, whatever its creator's.
+    pool.reset(new ThreadPool(threads));
+#ifdef __linux__
+    if (CPU_COUNT(&cores) > 0) {
+        pool->execute([&](ThreadPool&, int) { sched_setaffinity(0, sizeof(cores), &cores); });
+        pool->waitForThreads();
+    }
+#endif
+}
+
 void ReferenceRPYBatch::runJobs() {
     vector<Copy*> jobs;
     for (auto& copy : copies)
@@ -242,6 +262,8 @@ void ReferenceRPYBatch::runJobs() {
             c.jobError = std::current_exception();
         }
     };
+    if (threads > 1 && !pool && jobs.size() > 1)
+        startThreads();
     if (!pool || jobs.size() < 2) {
         for (Copy* c : jobs)
             work(*c);
