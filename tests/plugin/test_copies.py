@@ -11,9 +11,10 @@ from __future__ import annotations
 import numpy as np
 import openmm
 import pytest
+from threadpoolctl import threadpool_limits
 
 from knotmm.model.layout import ChainLayout
-from knotmm.model.system import chain_system
+from knotmm.model.system import ChainModel, chain_system, copies_system
 from knotmm.plugin import RPYIntegrator
 from knotmm.shapes import torus_knot
 
@@ -39,14 +40,17 @@ def _single(x, method, platform, seed=0):
     return integ, ctx
 
 
-def _batch(starts, method, platform, singles=None, threads=1):
+def _batch(starts, method, platform, singles=None, threads=1, apart=True):
+    """The copies on a grid (``apart``, a System with knotmm's NonbondedForce) or in one
+    place (``copies_system``'s interaction groups)."""
     k = len(starts)
     integ = _integrator(method, threads=threads)
     integ.setNumCopies(k)
-    layout = ChainLayout((N,) * k, (True,) * k)
+    integ.setCopiesApart(apart)
     x = np.vstack(starts)
-    ctx = openmm.Context(chain_system(x, layout=layout), integ,
-                         openmm.Platform.getPlatformByName(platform))
+    system = (chain_system(x, layout=ChainLayout((N,) * k, (True,) * k)) if apart
+              else copies_system(starts[0], ChainModel(), ChainLayout.ring(N), k))
+    ctx = openmm.Context(system, integ, openmm.Platform.getPlatformByName(platform))
     ctx.setPositions(x)
     for c, start in enumerate(starts):
         integ.setCopyPositions(c, start.ravel().tolist())
@@ -71,12 +75,13 @@ def _accepted(integ, c, method, platform):
     return probe.getNumAcceptedSteps()
 
 
+@pytest.mark.parametrize("apart", [True, False])
 @pytest.mark.parametrize("platform", ["Reference", "CPU"])
 @pytest.mark.parametrize("method", ["rk23", "ito_heun", "ito_heun_adaptive"])
-def test_each_copy_follows_its_single_run(method, platform):
+def test_each_copy_follows_its_single_run(method, platform, apart):
     starts = _starts()
     singles = [_single(x, method, platform, seed=10 + c) for c, x in enumerate(starts)]
-    batch, _ = _batch(starts, method, platform, singles)
+    batch, _ = _batch(starts, method, platform, singles, apart=apart)
     duration = 1.0 if method == "rk23" else 0.2
     for integ, _ctx in singles:
         integ.stepTo(duration)
@@ -106,6 +111,23 @@ def test_a_copy_that_needs_small_steps_does_not_slow_the_others():
     counts = [_accepted(batch, c, "rk23", "Reference") for c in range(K)]
     assert counts == [integ.getNumAcceptedSteps() for integ, _ in singles]
     assert counts[0] >= 1.5 * max(counts[1:])  # the squeezed copy took many more steps
+
+
+def test_in_one_place_a_copy_does_not_feel_what_the_others_do():
+    # copies_system: a copy's forces are its own; copy 0 takes the same steps whether the
+    # others move, stand still or were never given a target
+    starts = _starts(4)
+    singles = [_single(x, "ito_heun_adaptive", "CPU", seed=30 + c) for c, x in enumerate(starts)]
+    runs = []
+    for targets in ([0.3] * 4, [0.3, 0.0, 0.0, 0.0], [0.3, 0.1, 0.25, 0.0]):
+        batch, ctx = _batch(starts, "ito_heun_adaptive", "CPU", singles, apart=False)
+        assert batch.getCopySpacing() == 0.0
+        batch.stepCopiesTo(targets, 1e9)
+        runs.append((_copy(batch, 0), ctx))
+    for positions, _ctx in runs[1:]:
+        np.testing.assert_array_equal(positions, runs[0][0])
+    # and with copies_system's grouped steric term the copies see each other in no force
+    assert np.abs(_copy(batch, 0) - _copy(batch, 3)).max() > 1e-3
 
 
 def test_moving_one_copy_far_away_changes_no_other():
@@ -138,9 +160,11 @@ def test_threads_share_out_the_copies_and_change_no_number():
     starts = _starts(4)
     singles = [_single(x, "ito_heun_adaptive", "Reference", seed=20 + c)
                for c, x in enumerate(starts)]
-    one, _one_ctx = _batch(starts, "ito_heun_adaptive", "Reference", singles)
-    two, _two_ctx = _batch(starts, "ito_heun_adaptive", "Reference", singles, threads=2)
-    assert one.stepCopiesTo([0.2] * 4, 1e9) and two.stepCopiesTo([0.2] * 4, 1e9)
+    one, _one_ctx = _batch(starts, "ito_heun_adaptive", "Reference", singles, apart=False)
+    two, _two_ctx = _batch(starts, "ito_heun_adaptive", "Reference", singles, threads=2,
+                           apart=False)
+    with threadpool_limits(limits=1, user_api="blas"):  # LAPACK's own threads round otherwise
+        assert one.stepCopiesTo([0.2] * 4, 1e9) and two.stepCopiesTo([0.2] * 4, 1e9)
     for c in range(4):
         np.testing.assert_array_equal(_copy(two, c), _copy(one, c))
 
