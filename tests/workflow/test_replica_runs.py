@@ -152,6 +152,40 @@ def test_a_breakdown_of_one_replica_is_recorded_and_the_others_go_on(tmp_path, m
     assert "1 broke down (1)" in result.summary()
 
 
+def test_a_copy_that_fails_takes_its_stretch_alone_and_the_others_are_untouched(
+        tmp_path, monkeypatch, brownian_set, caplog):
+    # the third stretch of replica 1 is handed to its copy with two beads on one point: the
+    # copy's step fails (no Cholesky factor there), the replica takes that stretch again
+    # alone from its own good state, and no other copy notices
+    import knotmm.plugin as plugin
+
+    real = plugin.RPYIntegrator.setCopyPositions
+    calls = {"n": 0}
+
+    def broken_once(self, copy, positions):
+        if copy == 1:
+            calls["n"] += 1
+            if calls["n"] == 3:
+                positions = list(positions)
+                positions[3:6] = positions[0:3]
+        return real(self, copy, positions)
+
+    monkeypatch.setattr(plugin.RPYIntegrator, "setCopyPositions", broken_once)
+    root = tmp_path / "set"
+    with caplog.at_level("INFO", logger="knotmm.engine.copies"):
+        result = run_replicas(RunConfig.from_dict(BROWNIAN), directory=root, progress=False)
+    assert not result.errors and calls["n"] > 3
+    assert any("replica 1: its copy stopped" in r.getMessage() and "alone" in r.getMessage()
+               for r in caplog.records)
+    reference = brownian_set[0]
+    for k in (0, 2):
+        np.testing.assert_array_equal(_xyz(root / f"replica_{k}"),
+                                      _xyz(reference / f"replica_{k}"))
+    # replica 1 took one stretch on its own Context (NonbondedForce): equal to rounding
+    np.testing.assert_allclose(_xyz(root / "replica_1"), _xyz(reference / "replica_1"),
+                               rtol=0, atol=1e-5)
+
+
 def test_an_interrupted_set_resumes_to_the_same_trajectories(tmp_path, monkeypatch,
                                                              brownian_set):
     root_ref, _ = brownian_set
