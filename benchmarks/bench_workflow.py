@@ -165,7 +165,7 @@ def cmd_replicas(args):
     k = args.replicas
     together, apart = f"{k} replicas together", f"{k} replicas one after another"
     samples = harness.interleave({f"{k} single runs": singles,
-                                  together: replicated("auto"),
+                                  together: replicated("together"),
                                   apart: replicated("one_after_another")},
                                  args.repeats, log=print)
     summary = _walls(samples)
