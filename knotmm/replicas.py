@@ -127,12 +127,15 @@ class ReplicaSetResult:
         Replica index -> the one-line message of its fault.
     wall_time : float
         Seconds for the whole set.
+    stepping : str
+        ``"stepped together"`` or ``"one after another"`` (``replicas.toml``'s reason).
     """
 
     directory: Path
     results: list[RunResult | None]
     errors: dict[int, str] = field(default_factory=dict)
     wall_time: float = 0.0
+    stepping: str = ""
 
     @property
     def count(self) -> int:
@@ -152,8 +155,9 @@ class ReplicaSetResult:
         faults = f", {len(self.errors)} broke down ({', '.join(map(str, self.errors))})" \
             if self.errors else ""
         t = done[0].time if done else 0.0
-        return (f"{self.count} replicas: {len(done)} simulated {t:g} tau_d{faults}; {speed}; "
-                f"wall time {self.wall_time:.1f} s, in {self.directory}/replica_*")
+        how = f" ({self.stepping})" if self.stepping else ""
+        return (f"{self.count} replicas{how}: {len(done)} simulated {t:g} tau_d{faults}; "
+                f"{speed}; wall time {self.wall_time:.1f} s, in {self.directory}/replica_*")
 
 
 def _set_record(cfg: RunConfig, seeds: list[int], refusal: str | None) -> dict:
@@ -422,7 +426,8 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
                 raise
     finally:
         lock.release()
-    return ReplicaSetResult(root, results, errors, time.perf_counter() - wall0)
+    return ReplicaSetResult(root, results, errors, time.perf_counter() - wall0,
+                            "stepped together" if refusal is None else "one after another")
 
 
 def resume_replicas(directory, progress: bool | None = None, duration: float | None = None,
@@ -464,14 +469,13 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     lock = RunLock(root, "--resume")
     errors: dict[int, str] = {}
     results: list[RunResult | None] = []
-    stepping = record["replicas"].get("stepping", "one after another")
+    together = record["replicas"].get("stepping") == "together" and len(seeds) > 1
     try:
-        if stepping == "together" and len(seeds) > 1:
+        if together:
             results = _together(len(seeds), lambda k, copies: _resume_one(
                 root, k, seeds[k], cfg, target, duration, progress if k == 0 else False,
                 wait_for_checks, copies), errors, root)
-        for k, seed in enumerate(seeds if not (stepping == "together" and len(seeds) > 1)
-                                 else []):
+        for k, seed in enumerate([] if together else seeds):
             where = replica_directory(root, k)
             facts = _facts(where)
             if facts is None:  # never started, or nothing of it worth keeping
@@ -490,12 +494,13 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
                 where, progress=progress, duration=duration,
                 wait_for_checks=wait_for_checks), errors, root))
         if duration is not None:
-            refusal = None if stepping == "together" else record["replicas"].get(
+            refusal = None if together else record["replicas"].get(
                 "stepping_reason", "one after another")
             write_replica_set(root, _set_record(cfg, seeds, refusal))
     finally:
         lock.release()
-    return ReplicaSetResult(root, results, errors, time.perf_counter() - wall0)
+    return ReplicaSetResult(root, results, errors, time.perf_counter() - wall0,
+                            "stepped together" if together else "one after another")
 
 
 def _resume_one(root: Path, k: int, seed: int, cfg: RunConfig, target: float,

@@ -232,7 +232,7 @@ def test_the_command_line_runs_and_resumes_a_set(tmp_path, capsys):
             "--set", "run.replicas=2", "--set", "run.topology_check_interval=0"]
     assert main(argv) == 0
     line = capsys.readouterr().out.strip().splitlines()[-1]
-    assert line.startswith("2 replicas: 2 simulated 0.5 tau_d")
+    assert line.startswith("2 replicas (stepped together): 2 simulated 0.5 tau_d")
     assert main(["run", "--resume", str(out)]) == 2
     assert "every replica already finished" in capsys.readouterr().err
     assert main(["run", "--resume", str(out), "--duration", "1"]) == 0
