@@ -100,7 +100,7 @@ def enter_group(copies, sim, facts: dict) -> None:
     if copies is not None:
         group, k = copies
         facts["replica_stepping"] = (f"together: copy {k} of {group.count} in one Context"
-                                     if group.join(k, sim) else "alone")
+                                     if group.join(k, sim, facts) else "alone")
 
 
 def leave_group(copies) -> None:
@@ -150,11 +150,14 @@ class CopyGroup:
         self._rpy = None
         self._context = None
         self._pin = None
+        self._facts: dict[int, dict] = {}  # copy -> its run's run.toml facts
+        self._broken: str | None = None  # why the copies can no longer be stepped
 
     # -- membership ---------------------------------------------------------------------
-    def join(self, k: int, sim) -> bool:
+    def join(self, k: int, sim, facts: dict | None = None) -> bool:
         """Step replica ``k``'s Simulation with the group from now on; False (and replica
-        ``k`` steps alone) where it cannot be a copy of the others."""
+        ``k`` steps alone) where it cannot be a copy of the others. ``facts`` (its run.toml's)
+        are told if the group breaks down later."""
         from knotmm.engine.plugin_engine import PluginEngine
 
         engine = sim._engine
@@ -171,12 +174,15 @@ class CopyGroup:
                 refusal = "its system or integrator differs from the other replicas'"
             elif self._rpy is not None:
                 refusal = "the copies were built before it joined"
+            elif self._broken is not None:
+                refusal = self._broken
             if refusal is not None:
                 log.info("replica %d steps alone: %s", k, refusal)
                 self._leave(k)
                 return False
             self._signature = signature
             self._members[k] = sim
+            self._facts[k] = facts if facts is not None else {}
             engine.group = self
             engine.copy_index = k
             return True
@@ -189,6 +195,7 @@ class CopyGroup:
     def _leave(self, k: int) -> None:
         self._live.discard(k)
         sim = self._members.pop(k, None)
+        self._facts.pop(k, None)
         if sim is not None:
             sim._engine.group = None
         self._cond.notify_all()
@@ -261,7 +268,25 @@ class CopyGroup:
                  platform.getName())
 
     def _round(self) -> None:
-        """Take every waiting replica to its target (the caller holds the lock)."""
+        """Take every waiting replica to its target (the caller holds the lock). Where the
+        copies cannot be built or stepped at all (an OpenMM error, memory), every replica
+        takes its stretch, and the rest of its run, alone."""
+        try:
+            self._step_round()
+        except Exception as exc:  # noqa: BLE001 - each replica then runs alone, as a run
+            self._broken = (f"the copies could not be stepped ({type(exc).__name__}: "
+                            f"{' '.join(str(exc).split())})")
+            log.warning("replicas %s step alone from here: %s",
+                        ", ".join(map(str, sorted(self._pending))), self._broken)
+            for k, stretch in list(self._pending.items()):
+                stretch.outcome = (None, None, None)
+                self._facts.get(k, {})["replica_stepping"] = f"alone: {self._broken}"
+                sim = self._members.get(k)
+                if sim is not None:
+                    sim._engine.group = None
+            self._pending.clear()
+
+    def _step_round(self) -> None:
         if self._rpy is None:
             self._build()
         rpy = self._rpy

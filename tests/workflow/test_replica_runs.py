@@ -186,6 +186,27 @@ def test_a_copy_that_fails_takes_its_stretch_alone_and_the_others_are_untouched(
                                rtol=0, atol=1e-5)
 
 
+def test_copies_that_cannot_be_built_leave_every_replica_to_run_alone(tmp_path, monkeypatch,
+                                                                     brownian_set):
+    import knotmm.model.system as system
+
+    def no_room(*args, **kwargs):
+        raise MemoryError("no room for the copies (a test)")
+
+    monkeypatch.setattr(system, "copies_system", no_room)
+    root = tmp_path / "set"
+    result = run_replicas(RunConfig.from_dict(BROWNIAN), directory=root, progress=False)
+    assert not result.errors
+    for k in range(3):
+        facts = read_facts(root / f"replica_{k}")
+        assert facts["status"] == "finished"
+        assert facts["replica_stepping"].startswith("alone: the copies could not be stepped")
+        assert "no room for the copies" in facts["replica_stepping"]
+        # alone, each is its single run: equal to the copies' trajectories to rounding
+        np.testing.assert_allclose(_xyz(root / f"replica_{k}"),
+                                   _xyz(brownian_set[0] / f"replica_{k}"), rtol=0, atol=1e-5)
+
+
 def test_an_interrupted_set_resumes_to_the_same_trajectories(tmp_path, monkeypatch,
                                                              brownian_set):
     root_ref, _ = brownian_set
