@@ -160,12 +160,13 @@ class PluginEngine(Engine):
 
     def _advance_with_group(self, sim, target: float) -> bool:
         """The stretch to ``target`` stepped by :attr:`group` with the other replicas'; the
-        replica's Context then holds what it reached. False: the copy failed, and nothing
-        changed here (the caller takes the stretch alone)."""
+        replica's Context then holds what it reached. False: the copy failed, or reached a
+        state the checks refuse, and nothing changed here (the caller takes the stretch
+        alone, where the fault is found as in a run alone)."""
         sim.sync_context()
         before = self._counts()
         positions, time, state = self.group.advance(self.copy_index, sim, target)
-        if positions is None:
+        if positions is None or not self._fine(sim, positions):  # found again alone
             return False
         self.rpy.setIntegratorState(state)
         sim.positions = positions

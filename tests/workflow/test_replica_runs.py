@@ -186,6 +186,44 @@ def test_a_copy_that_fails_takes_its_stretch_alone_and_the_others_are_untouched(
                                rtol=0, atol=1e-5)
 
 
+def test_a_copy_whose_bonds_run_away_takes_its_stretch_alone(tmp_path, monkeypatch,
+                                                             brownian_set):
+    # the checks of a run alone (finite positions, bonds within run.max_bond_length) hold
+    # for what a copy reached: here copy 2 hands back, once, a bond stretched to 10 d
+    import knotmm.plugin as plugin
+
+    real = plugin.RPYIntegrator.getCopyPositions
+    calls = {"n": 0}
+
+    def stretched_once(self, copy):
+        positions = real(self, copy)
+        if copy == 2:
+            calls["n"] += 1
+            if calls["n"] == 4:
+                positions = list(positions)
+                positions[0] += 10.0
+        return positions
+
+    monkeypatch.setattr(plugin.RPYIntegrator, "getCopyPositions", stretched_once)
+    from knotmm.engine.plugin_engine import PluginEngine
+
+    alone = []
+    real_alone = PluginEngine._advance_within
+
+    def counted(self, sim, target):
+        alone.append(self.copy_index)
+        return real_alone(self, sim, target)
+
+    monkeypatch.setattr(PluginEngine, "_advance_within", counted)
+    root = tmp_path / "set"
+    result = run_replicas(RunConfig.from_dict(BROWNIAN), directory=root, progress=False)
+    assert not result.errors and calls["n"] > 4
+    assert alone and set(alone) == {2}  # that stretch, and no other, was taken alone
+    assert read_facts(root / "replica_2")["final_max_bond"] < 3.0
+    ours, theirs = _xyz(root / "replica_2"), _xyz(brownian_set[0] / "replica_2")
+    np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-5)
+
+
 def test_copies_that_cannot_be_built_leave_every_replica_to_run_alone(tmp_path, monkeypatch,
                                                                      brownian_set):
     import knotmm.model.system as system
