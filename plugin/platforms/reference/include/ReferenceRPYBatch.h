@@ -50,7 +50,7 @@ public:
     void velocity(OpenMM::ContextImpl& context, const StateVector& y, StateVector& v) override;
     void groupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
                        std::vector<double>& energies) override;
-    /** Cholesky: factorised by the batch, beside the other copies' work; Lanczos: as alone. */
+    /** Cholesky with the batch's threads: factorised by them beside the other copies' work; else as alone. */
     void factorNoise(const StateVector& y) override;
     /** The batch's jobs for this copy, run on one of its threads. */
     void velocityJob(const std::vector<double>& y, const std::vector<OpenMM::Vec3>& forces, std::vector<double>& out) {
