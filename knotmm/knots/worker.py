@@ -387,6 +387,9 @@ class IsolatedKnotIdentifier:
         try:
             if self.own_process:
                 self._worker.close()
+            elif self._attached:  # one never closed still lets the shared worker go
+                self._attached = False
+                self._worker.release()
         except Exception:  # noqa: BLE001
             pass
 
