@@ -165,16 +165,13 @@ class CopyGroup:
                      sim.layout.to_record() if hasattr(sim.layout, "to_record") else None,
                      repr(sim.model), engine.integrator.name)
         with self._cond:
-            refusal = None
-            if not isinstance(engine, PluginEngine):
-                refusal = "its engine is not the plugin's"
-            elif copies_refusal("plugin", sim.platform_name, self.count, "together"):
-                refusal = copies_refusal("plugin", sim.platform_name, self.count, "together")
-            elif self._signature is not None and signature != self._signature:
+            refusal = (copies_refusal("plugin", sim.platform_name, self.count, "together")
+                       if isinstance(engine, PluginEngine) else "its engine is not the plugin's")
+            if refusal is None and self._signature not in (None, signature):
                 refusal = "its system or integrator differs from the other replicas'"
-            elif self._rpy is not None:
+            if refusal is None and self._rpy is not None:
                 refusal = "the copies were built before it joined"
-            elif self._broken is not None:
+            if refusal is None:
                 refusal = self._broken
             if refusal is not None:
                 log.info("replica %d steps alone: %s", k, refusal)
