@@ -14,6 +14,12 @@ import numpy as np
 from knotmm.analysis.drawing import bead_colors, drawn_bonds, run_layout, system_title
 from knotmm.analysis.fit import scaled_coordinates
 from knotmm.analysis.result import AnalysisResult
+from knotmm.analysis.series_plots import (
+    RING_PANELS,
+    chain_colors,
+    plot_series_panel,
+    time_series_panels,
+)
 from knotmm.io.atomic import write_atomic
 from knotmm.plotstyle import label as axis_label
 from knotmm.plotstyle import plain_ticks
@@ -60,8 +66,10 @@ def _shade_window(ax, result: AnalysisResult, labels: bool = False) -> None:
     win = result.window
     if _steady(result):  # the window the analysis used, steady or not (the title says which)
         ax.axvspan(win.t0, win.t1, color="0.9", zorder=0, lw=0)
-    # a collapse "at" the first frame is no event to mark
-    if win.collapse_time is not None and win.collapse_time > result.data.times[0]:
+    # a collapse "at" the first frame is no event to mark; a torus collapse only where there
+    # is a torus (not for an open chain or separate chains)
+    if (win.collapse_time is not None and win.collapse_time > result.data.times[0]
+            and _torus(result)):
         ax.axvline(
             win.collapse_time,
             color="tab:red",
@@ -80,11 +88,16 @@ def _steady(result: AnalysisResult) -> bool:
     return not any("no frame is steady" in n for n in [*result.window.notes, *result.notes])
 
 
+def _torus(result: AnalysisResult) -> bool:
+    """Whether the run is one torus object (a ring, a link): rho0 applies."""
+    return "major_radius" not in result.not_applicable
+
+
 def _collapse_inside(result: AnalysisResult) -> float | None:
     """The torus collapse time when it falls inside the window (not steady throughout)."""
     win = result.window
     t = win.collapse_time
-    return t if t is not None and win.t0 < t < win.t1 else None
+    return t if t is not None and win.t0 < t < win.t1 and _torus(result) else None
 
 
 def _finite(value) -> bool:
@@ -118,7 +131,10 @@ def plot_com_height(result: AnalysisResult, ax=None):
     ax = ax or _new_axes()
     t, com = result.data.times, result.coords.com
     _shade_window(ax, result, labels=True)
-    ax.plot(t, com[:, 2], color="k", lw=1.2, label="centre of mass")
+    layout = run_layout(result.data)
+    several = layout is not None and layout.n_chains > 1  # tab:orange is chain B's colour
+    ax.plot(t, com[:, 2], color="k", lw=1.2,
+            label="centre of mass, all" if several else "centre of mass")
     win = result.window
     tw = t[win.frames]
     zw = com[win.frames, 2]
@@ -126,7 +142,7 @@ def plot_com_height(result: AnalysisResult, ax=None):
     ax.plot(
         tw,
         line,
-        color="tab:orange",
+        color="0.45" if several else "tab:orange",
         ls="--",
         lw=1,
         label=f"V = {result.sedimentation_velocity:.4g} d/$\\tau_d$",
@@ -175,41 +191,84 @@ def plot_bead_coordinate(result: AnalysisResult, which: str = "rho", beads=None,
 
 
 def plot_time_series(result: AnalysisResult, axes=None):
-    """Four stacked panels: COM height, bead rho, alpha and z against time.
+    """Stacked panels against time: what applies to the run's objects.
+
+    A ring (or a link, one torus object): the centre-of-mass height and the beads' rho,
+    alpha and z. An open chain: height, Rg, the end-to-end length and its angle to the
+    vertical. Several chains: height (all beads and each chain), each chain's Rg, each
+    ring's mean radius, each open chain's end-to-end length, the distances of the chains'
+    centres (:mod:`knotmm.analysis.series_plots`, :func:`time_series_panels` names them).
 
     Parameters
     ----------
     result : AnalysisResult
-    axes : sequence of 4 Axes, optional
-        Default: a new pyplot figure.
+    axes : sequence of Axes, optional
+        One per panel (``len(time_series_panels(result))``). Default: a new pyplot figure.
 
     Returns
     -------
-    ndarray of 4 Axes
+    ndarray of Axes
     """
+    panels = time_series_panels(result)
     if axes is None:
         import matplotlib.pyplot as plt
 
-        _, axes = plt.subplots(4, 1, sharex=True, figsize=(8, 9))
+        _, axes = plt.subplots(len(panels), 1, sharex=True, figsize=_series_size(panels))
     axes = np.asarray(axes).ravel()
+    if len(axes) != len(panels):
+        raise ValueError(f"plot_time_series: this run has {len(panels)} panels "
+                         f"({', '.join(panels)}); {len(axes)} axes were given")
     plot_com_height(result, ax=axes[0])
-    for ax, which in zip(axes[1:], ("rho", "alpha", "z"), strict=True):
-        plot_bead_coordinate(result, which, ax=ax)
+    if panels != RING_PANELS:
+        _chain_heights(result, axes[0])
+    for ax, which in zip(axes[1:], panels[1:], strict=True):
+        if which in ("rho", "alpha", "z"):
+            plot_bead_coordinate(result, which, ax=ax)
+        else:
+            _shade_window(ax, result)
+            plot_series_panel(result, which, ax)
+    for ax in axes:  # beside the panels, never over the curves; one column
+        handles, labels = ax.get_legend_handles_labels()
+        if handles:
+            ax.legend(handles, labels, loc="center left", bbox_to_anchor=(1.01, 0.5),
+                      fontsize="small", frameon=False, borderaxespad=0.0, handlelength=1.5)
     axes[-1].set_xlabel(axis_label("time"))
-    win = result.window
-    collapse = _collapse_inside(result)
-    if _steady(result) and collapse is not None:
-        title = (f"analysis window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded): not steady "
-                 f"throughout, the torus collapses at $t$ = {collapse:g}")
-    elif _steady(result):
-        title = (f"steady window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded); "
-                 f"end: {win.end_reason}")
-    else:
-        title = "no steady window found: the whole run is analysed"
-    axes[0].set_title(title, fontsize="medium")
+    axes[0].set_title(_series_title(result), fontsize="medium")
     for ax in axes:
         plain_ticks(ax)
     return axes
+
+
+def _series_size(panels) -> tuple[float, float]:
+    """Figure size (inches) of the time series: 8 wide, about 2 per panel."""
+    return 8.0, 1.0 + 2.0 * len(panels)
+
+
+def _chain_heights(result: AnalysisResult, ax) -> None:
+    """Each chain's centre-of-mass height in its colour (several chains)."""
+    layout = run_layout(result.data)
+    if layout is None or layout.n_chains < 2:
+        return
+    z = np.asarray(result.data.positions)[..., 2]
+    for cid, sl, closed, color in zip(layout.ids, layout.slices(), layout.closed,
+                                      chain_colors(layout.n_chains), strict=True):
+        ax.plot(result.data.times, z[:, sl].mean(axis=1), color=color, lw=1.0,
+                label=f"{cid} ({'ring' if closed else 'open'})")
+
+
+def _series_title(result: AnalysisResult) -> str:
+    """What the shading is: the steady window and why it ends, or the whole run."""
+    win = result.window
+    collapse = _collapse_inside(result)
+    if _steady(result) and collapse is not None:
+        return (f"analysis window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded): not steady "
+                f"throughout, the torus collapses at $t$ = {collapse:g}")
+    if _steady(result):
+        end = win.end_reason
+        if end == "collapse" and not _torus(result):  # no torus: the radius signal left
+            end = "departure: radius"
+        return f"steady window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded); end: {end}"
+    return "no steady window found: the whole run is analysed"
 
 
 def plot_spectrum(result: AnalysisResult, ax=None):
@@ -478,8 +537,9 @@ def save_plots(result: AnalysisResult, directory, dpi: int = 150) -> list[Path]:
     written = []
 
     title = system_title(result.data, result.to_dict())
-    fig = Figure(figsize=(8, 9), layout="constrained")
-    plot_time_series(result, axes=fig.subplots(4, 1, sharex=True))
+    panels = time_series_panels(result)
+    fig = Figure(figsize=_series_size(panels), layout="constrained")
+    plot_time_series(result, axes=fig.subplots(len(panels), 1, sharex=True))
     fig.suptitle(title)
     written.append(_save(fig, out / PLOT_FILES["timeseries"], dpi))
 
