@@ -30,7 +30,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,8 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from knotmm.config import RunConfig
-from knotmm.engine.copies import CopyGroup, copies_refusal
-from knotmm.engine.interrupt import StopRequested, request_stop, take_stop_request
+from knotmm.engine.copies import MAX_TOGETHER, copies_refusal, run_together
 from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault
 from knotmm.io.replica_set import (
     REPLICA_SET_FILE,
@@ -173,56 +171,21 @@ _TOGETHER = ("the replicas are copies of one system in one OpenMM Context: one f
              "evaluation for all, each its own steps (knotmm.engine.copies)")
 
 
-#: Most replicas stepped together in one Context: a larger set runs in groups of at most this
-#: many, as equal as can be, one group after another (each replica holds a thread, a Context
-#: of its own and its open files while its group runs).
-MAX_TOGETHER = 64
-
-
 def _together(count: int, go, errors: dict[int, str],
               root: Path) -> list[RunResult | None]:
-    """Run the replicas in groups of at most :data:`MAX_TOGETHER`, each group's replicas
-    side by side, in a thread each, stepped as the copies of one
-    :class:`~knotmm.engine.copies.CopyGroup`: replica k runs ``go(k, (group, copy))``. A
-    replica that ends, however it ends, leaves its group; a stop asked for by a signal
-    stops them all (each writes its checkpoint) and no later group starts. The first
-    failure (an interruption first) is raised once every replica of the group has ended."""
-    from threadpoolctl import threadpool_limits
-
+    """Run the replicas side by side, stepped as copies of one Context
+    (:func:`knotmm.engine.copies.run_together`, in groups of at most :data:`MAX_TOGETHER`):
+    replica k runs ``go(k, (group, copy))``. The first failure (an interruption first) is
+    raised once every replica of its group has ended."""
     results: list[RunResult | None] = [None] * count
-    failures: dict[int, BaseException] = {}
 
-    def one(k, group, copy):
-        try:
-            results[k] = _one(k, lambda: go(k, (group, copy)), errors, root)
-        except StopRequested as exc:
-            failures[k] = exc
-            request_stop()  # the others stop at their next step too
-        except BaseException as exc:  # noqa: BLE001 - raised below, in the caller's thread
-            failures[k] = exc
-        finally:
-            group.leave(copy)
+    def body(k, copies):
+        results[k] = _one(k, lambda: go(k, copies), errors, root)
 
-    # BLAS on one thread for the whole set: each run limits it while it steps and puts the
-    # former limit back when it ends, which, with runs ending at their own times, would let
-    # the others factorise with more threads (and round otherwise) from then on
-    with threadpool_limits(limits=1, user_api="blas"):
-        groups = -(-count // MAX_TOGETHER)  # of sizes that differ by one at most
-        for g in range(groups):
-            first = count * g // groups
-            members = range(first, count * (g + 1) // groups)
-            group = CopyGroup(len(members))
-            threads = [threading.Thread(target=one, args=(k, group, k - first), daemon=True,
-                                        name=f"knotmm-replica-{k}") for k in members]
-            for t in threads:
-                t.start()
-            for t in threads:
-                while t.is_alive():
-                    t.join(0.2)  # the main thread stays free to take signals
-            take_stop_request()  # asked for by a replica for the others; all have stopped
-            if failures:
-                stops = [e for e in failures.values() if isinstance(e, KeyboardInterrupt)]
-                raise stops[0] if stops else failures[min(failures)]
+    failures = run_together(count, body, MAX_TOGETHER)
+    if failures:
+        stops = [e for e in failures.values() if isinstance(e, KeyboardInterrupt)]
+        raise stops[0] if stops else failures[min(failures)]
     return results
 
 

@@ -38,10 +38,10 @@ import threading
 
 import numpy as np
 
-from knotmm.engine.interrupt import StopRequested, stop_signal, take_stop_request
+from knotmm.engine.interrupt import StopRequested, request_stop, stop_signal, take_stop_request
 
-__all__ = ["COPY_PLATFORMS", "TOGETHER_MAX_BEADS", "CopyGroup", "copies_refusal", "enter_group",
-           "leave_group"]
+__all__ = ["COPY_PLATFORMS", "MAX_TOGETHER", "TOGETHER_MAX_BEADS", "CopyGroup", "copies_refusal",
+           "enter_group", "leave_group", "run_together"]
 
 log = logging.getLogger(__name__)
 
@@ -56,6 +56,12 @@ COPY_PLATFORMS = ("Reference", "CPU")
 #: 1.08x, 1.20x the wall time of one after another at N = 40, 60, 90, 120; 40 tau_d at
 #: Pe = inf: 0.94x, 0.99x, 1.53x at N = 90, 120, 240).
 TOGETHER_MAX_BEADS = {"brownian": 79, "deterministic": 120}
+
+
+#: Most runs stepped together in one Context: a larger set runs in groups of at most this
+#: many, as equal as can be, one group after another (each run holds a thread, a Context of
+#: its own and its open files while its group runs).
+MAX_TOGETHER = 64
 
 
 def copies_refusal(engine: str, platform: str, count: int, stepping: str = "auto",
@@ -92,6 +98,73 @@ def copies_refusal(engine: str, platform: str, count: int, stepping: str = "auto
                 f"{TOGETHER_MAX_BEADS[kind]} beads (benchmarks/README.md, replicas); "
                 f'run.replica_stepping = "together" steps them together')
     return None
+
+
+def run_together(count: int, body, max_together: int | None = None) -> dict[int, BaseException]:
+    """Run ``body(k, (group, copy))`` for ``k`` in ``range(count)``, each in a thread of its
+    own, the runs stepped as the copies of a :class:`CopyGroup`: groups of at most
+    ``max_together`` (default :data:`MAX_TOGETHER`) runs of sizes that differ by one at most,
+    one group after another. A run that ends, however it ends, leaves its group. A stop asked
+    for by a signal (or a :class:`StopRequested` of one run) stops every run of the group at a
+    whole step, and no later group starts.
+
+    Returns
+    -------
+    dict
+        ``{k: exception}`` for each run whose ``body`` raised (the others' return values are
+        the caller's to keep); key -1: an interruption of the waiting thread, waited out.
+    """
+    from threadpoolctl import threadpool_limits
+
+    limit = int(max_together or MAX_TOGETHER)
+    failures: dict[int, BaseException] = {}
+
+    def one(k, group, copy):
+        try:
+            body(k, (group, copy))
+        except BaseException as exc:  # noqa: BLE001 - handed back to the caller's thread
+            failures[k] = exc
+            if isinstance(exc, KeyboardInterrupt):
+                request_stop()  # the others stop at their next step too
+        finally:
+            group.leave(copy)
+
+    # BLAS on one thread for the whole set: each run limits it while it steps and puts the
+    # former limit back when it ends, which, with runs ending at their own times, would let
+    # the others factorise with more threads (and round otherwise) from then on
+    with threadpool_limits(limits=1, user_api="blas"):
+        groups = -(-count // limit)
+        for g in range(groups):
+            first = count * g // groups
+            members = range(first, count * (g + 1) // groups)
+            group = CopyGroup(len(members))
+            threads = [threading.Thread(target=one, args=(k, group, k - first), daemon=True,
+                                        name=f"knotmm-copy-{k}") for k in members]
+            for t in threads:
+                t.start()
+            _join(threads, failures)
+            take_stop_request()  # asked for by a run for the others; all have stopped
+            if failures:
+                break
+    return failures
+
+
+def _join(threads, failures: dict) -> None:
+    """Wait for the threads, the main thread free to take signals: a first interruption
+    raised here asks every run to stop at its next whole step (they then write their
+    checkpoints) and is waited out; a second one is raised at once."""
+    interrupted = None
+    for t in threads:
+        while t.is_alive():
+            try:
+                t.join(0.2)
+            except KeyboardInterrupt as exc:
+                if interrupted is not None:
+                    raise
+                interrupted = exc
+                request_stop()
+    if interrupted is not None:
+        failures.setdefault(-1, interrupted)
 
 
 def enter_group(copies, sim, facts: dict) -> None:

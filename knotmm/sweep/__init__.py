@@ -5,6 +5,7 @@
 :mod:`~knotmm.sweep.plan`     points, replica seeds, what to skip, analyse, resume or run
 :mod:`~knotmm.sweep.check`    the checks ``knotmm run`` makes, on every point (``--dry-run``)
 :mod:`~knotmm.sweep.point`    one point: run it, analyse it, its summary values
+:mod:`~knotmm.sweep.together` a point's ``seeds = K`` replicas as one replicated run
 :mod:`~knotmm.sweep.local`    executor: local worker processes, with crash recovery
 :mod:`~knotmm.sweep.dask`     executor: an existing Dask distributed cluster
 :mod:`~knotmm.sweep.runner`   :func:`run_sweep`: plan, execute, write the summary and plots

@@ -19,7 +19,7 @@ from knotmm.config import RunConfig
 from knotmm.errors import ConfigError
 from knotmm.sweep.summary import summary_values, time_reached
 
-__all__ = ["INTERRUPT_EXIT", "error_text", "lost_result", "run_point"]
+__all__ = ["INTERRUPT_EXIT", "error_text", "lost_result", "run_group", "run_point"]
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +61,10 @@ def leave() -> None:  # pragma: no cover - runs in the worker processes
 def _interrupted(name: str) -> dict[str, Any]:
     if WorkerState.stopping:  # a local worker told to stop: the run's files are closed, leave
         leave()
+    return _interrupted_quietly(name)
+
+
+def _interrupted_quietly(name: str) -> dict[str, Any]:
     return {"name": name, "status": "pending", "error": "interrupted", "values": {}}
 
 
@@ -79,7 +83,8 @@ def run_point(task: Mapping[str, Any]) -> dict[str, Any]:
         that is not possible, then analyse, ``"analyze"``: analyse an existing finished
         run), ``analysis`` (keyword arguments of
         :func:`knotmm.analysis.analyze_run`: ``t_from``, ``t_to``, ``plots``,
-        ``knot_samples``).
+        ``knot_samples``). Or the replicas of one point to step together: ``name`` and
+        ``members``, each such a task (:func:`run_group`, which then returns).
 
     Returns
     -------
@@ -88,6 +93,8 @@ def run_point(task: Mapping[str, Any]) -> dict[str, Any]:
         (one line or None), ``values`` (:func:`knotmm.sweep.summary.summary_values`, with
         ``time_reached``).
     """
+    if "members" in task:
+        return run_group(task)
     WorkerState.running = True
     # the run's warnings (a change of knot type, ...) are in its run.toml and analysis.json;
     # a sweep of many points would otherwise print them all, interleaved
@@ -103,11 +110,20 @@ def run_point(task: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _run_point(task: Mapping[str, Any]) -> dict[str, Any]:
+    outcome = _simulate(task)
+    if outcome is None:
+        return _interrupted(task["name"])
+    return _analyse(task, *outcome)
+
+
+def _simulate(task: Mapping[str, Any], copies=None) -> tuple[str, str | None] | None:
+    """Run or resume the point's simulation: ``(status, error)``, or None if interrupted.
+    ``copies``: ``(group, k)`` where the point is copy k of a
+    :class:`~knotmm.engine.copies.CopyGroup` (:func:`run_group`)."""
     from knotmm.errors import SimulationFault
 
     name = task["name"]
     directory = Path(task["directory"])
-    status, error, analysis = "finished", None, None
     action = task.get("action", "run")
     try:
         if action == "resume":
@@ -115,7 +131,7 @@ def _run_point(task: Mapping[str, Any]) -> dict[str, Any]:
             from knotmm.workflow import resume
 
             try:
-                resume(directory, progress=False, wait_for_checks=True)
+                resume(directory, progress=False, wait_for_checks=True, copies=copies)
             except (ConfigError, TrajectoryFileError, RunDirectoryError) as exc:
                 log.info("point %s cannot be resumed (%s): running it again", name, exc)
                 action = "run"
@@ -124,14 +140,23 @@ def _run_point(task: Mapping[str, Any]) -> dict[str, Any]:
 
             cfg = RunConfig.from_dict(task["config"])
             # a sweep's analysis waits for topoly next anyway: the run's checks are kept
-            run(cfg, directory=directory, overwrite=True, progress=False, wait_for_checks=True)
+            run(cfg, directory=directory, overwrite=True, progress=False, wait_for_checks=True,
+                copies=copies)
     except SimulationFault as exc:
-        status, error = "fault", error_text(exc)
+        return "fault", error_text(exc)
     except KeyboardInterrupt:
-        return _interrupted(name)
+        return None
     except Exception as exc:  # any failure of this point is reported, never raised
-        status, error = "error", error_text(exc)
         log.debug("point %s failed", name, exc_info=True)
+        return "error", error_text(exc)
+    return "finished", None
+
+
+def _analyse(task: Mapping[str, Any], status: str, error: str | None) -> dict[str, Any]:
+    """The point's result: its run analysed where it finished (``run_point``'s return)."""
+    name = task["name"]
+    directory = Path(task["directory"])
+    analysis = None
     if status == "finished":
         try:
             import matplotlib
@@ -149,3 +174,50 @@ def _run_point(task: Mapping[str, Any]) -> dict[str, Any]:
     values = summary_values(analysis)
     values["time_reached"] = time_reached(directory)
     return {"name": name, "status": status, "error": error, "values": values}
+
+
+def run_group(task: Mapping[str, Any]) -> dict[str, Any]:
+    """Run the replicas of one sweep point (``seeds = K``) stepped together, as one replicated
+    run steps its replicas (:func:`knotmm.engine.copies.run_together`: copies of one OpenMM
+    Context, each its own steps); then analyse each. A replica that cannot be a copy of the
+    others (its engine, its system) runs alone beside them, as in a replicated run.
+
+    Parameters
+    ----------
+    task : dict
+        ``name`` (the group's), ``members``: the points' own tasks (:func:`run_point`).
+
+    Returns
+    -------
+    dict
+        ``name``, ``status`` (``"pending"`` if any replica was interrupted, else
+        ``"finished"``), ``group``: the members' results, each as :func:`run_point`'s.
+    """
+    from knotmm.engine.copies import run_together
+    from knotmm.engine.interrupt import request_stop
+
+    members = list(task["members"])
+    outcomes: list[tuple[str, str | None] | None] = [None] * len(members)
+    WorkerState.running = True
+    knotmm_log = logging.getLogger("knotmm")
+    level = knotmm_log.level
+    if knotmm_log.getEffectiveLevel() < logging.ERROR:
+        knotmm_log.setLevel(logging.ERROR)
+    try:
+        def body(k, copies):
+            outcomes[k] = _simulate(members[k], copies)
+            if outcomes[k] is None:
+                request_stop()  # the other replicas stop at their next step too
+
+        failures = run_together(len(members), body)
+        if failures or any(o is None for o in outcomes):
+            results = [_interrupted_quietly(m["name"]) for m in members]
+        else:
+            results = [_analyse(m, *o) for m, o in zip(members, outcomes, strict=True)]
+    finally:
+        knotmm_log.setLevel(level)
+        WorkerState.running = False
+    if any(r["status"] == "pending" for r in results) and WorkerState.stopping:
+        leave()
+    status = "pending" if any(r["status"] == "pending" for r in results) else "finished"
+    return {"name": task["name"], "status": status, "error": None, "group": results}

@@ -76,6 +76,7 @@ from knotmm.sweep.plots import save_sweep_plots
 from knotmm.sweep.point import error_text, run_point
 from knotmm.sweep.spec import SWEEP_FILE, Sweep, describe_set, set_table
 from knotmm.sweep.summary import SUMMARY_FILE, summary_text, summary_values
+from knotmm.sweep.together import group_tasks, point_results
 
 __all__ = ["SweepResult", "run_sweep"]
 
@@ -309,6 +310,7 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
     }
     rows: list[dict[str, Any]] = []
     tasks: list[dict[str, Any]] = []
+    same_point: dict[str, tuple] = {}  # name -> the point without its seed
     counts = {"run": 0, "resume": 0, "analyze": 0, "skip": 0}
     for point in sweep.points:
         point_dir = directory / point.name
@@ -317,6 +319,7 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
         if sweep.options.seeds:
             row["replica"] = point.replica
             row["run.seed"] = point.values["run.seed"]
+            same_point[point.name] = tuple(repr(point.values.get(k)) for k in sweep.keys)
         action, values = plan_point(point, point_dir, reanalyze)
         counts[action] += 1
         if action == "skip":
@@ -335,6 +338,12 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
             )
         rows.append(row)
     by_name = {r["point"]: r for r in rows}
+    n = None
+    if client is None and workers != 0:
+        n = workers if workers is not None else default_workers(sweep.base["run.threads"])
+    if same_point and func is run_point:  # a point's replicas as one replicated run
+        tasks = group_tasks(tasks, same_point, n)
+    groups = {t["name"]: [m["name"] for m in t["members"]] for t in tasks if "members" in t}
     summary_path = directory / SUMMARY_FILE
     with writing(summary_path):
         write_text_atomic(summary_path, summary_text(sweep.columns, rows))
@@ -346,6 +355,10 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
     n_failed = 0
 
     def on_result(result: Mapping[str, Any]) -> None:
+        for one in point_results(result, groups):
+            on_point(one)
+
+    def on_point(result: Mapping[str, Any]) -> None:
         nonlocal n_failed
         row = by_name[result["name"]]
         row.update(result.get("values") or summary_values(None))
@@ -368,7 +381,6 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
         elif workers == 0:
             run_inline(tasks, on_result, func)
         else:
-            n = workers if workers is not None else default_workers(sweep.base["run.threads"])
             run_local(tasks, n, on_result, func)
     except BaseException as exc:
         stopped = exc

@@ -1,0 +1,106 @@
+"""A sweep's ``seeds = K`` replicas of a point, run as one replicated run.
+
+Where a replicated run (``[run] replicas = K``, :mod:`knotmm.replicas`) would step its
+replicas together (:func:`knotmm.engine.copies.copies_refusal`: the plugin engine on a platform
+that holds copies, systems small enough, ``run.replica_stepping`` not
+``"one_after_another"``), the replicas of one sweep point that are to be run or resumed are
+handed to a worker as one task (:func:`knotmm.sweep.point.run_group`): they are stepped as the
+copies of one OpenMM Context, each still a run of its own in its own point directory, with
+its own seed, checkpoints, result row and failure. A point whose replicas cannot be stepped
+together keeps one task per replica.
+
+So that a small sweep still keeps every local worker busy, a point's replicas are split into
+as many groups (of two or more) as it takes to give each worker one; each group is a
+replicated run of its own.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from knotmm.config import RunConfig
+
+__all__ = ["group_tasks", "point_results", "stepping_refusal"]
+
+log = logging.getLogger(__name__)
+
+
+def stepping_refusal(cfg: RunConfig, count: int) -> str | None:
+    """Why ``count`` replicas of ``cfg`` are not stepped together, or None if they are
+    (the run plan's engine, platform and beads: :func:`knotmm.plan.prepare`, the check a
+    replicated run makes); a configuration that cannot be planned is not grouped (each of
+    its replicas then fails, or runs, as a point of its own)."""
+    from knotmm.engine.copies import copies_refusal
+    from knotmm.plan import prepare
+
+    if count < 2 or cfg["run.replica_stepping"] == "one_after_another":
+        return copies_refusal("plugin", "CPU", count, cfg["run.replica_stepping"])
+    try:
+        sim = prepare(cfg, identify="skip").simulation
+    except Exception as exc:  # noqa: BLE001 - the replicas' own runs report it
+        return f"the point cannot be planned ({type(exc).__name__})"
+    return copies_refusal(sim.engine, sim.platform_name, count, cfg["run.replica_stepping"],
+                          sim.n_beads, math.isfinite(cfg["run.peclet"]))
+
+
+def group_tasks(tasks: Sequence[Mapping[str, Any]], keys: Mapping[str, tuple],
+                workers: int | None) -> list[dict[str, Any]]:
+    """The tasks, the replicas of each point that can be stepped together as group tasks.
+
+    Parameters
+    ----------
+    tasks : sequence of dict
+        One per point to run, resume or analyse (:func:`knotmm.sweep.point.run_point`).
+    keys : dict
+        Task name -> the key of its point without its seed; tasks that share a key are
+        replicas of one point.
+    workers : int or None
+        Local worker processes the tasks are shared out to (None: a Dask cluster or this
+        process: a point's replicas stay one group).
+
+    Returns
+    -------
+    list of dict
+        Single tasks as they were, and group tasks ``{"name", "members"}``.
+    """
+    runs = [t for t in tasks if t.get("action") in ("run", "resume")]
+    by_point: dict[tuple, list] = {}
+    for task in runs:
+        by_point.setdefault(keys[task["name"]], []).append(task)
+    together = {}
+    for key, members in by_point.items():
+        why = stepping_refusal(RunConfig.from_dict(members[0]["config"]), len(members))
+        if why is None:
+            together[key] = members
+        else:
+            log.info("the replicas of %s run one by one: %s", members[0]["name"], why)
+    if not together:
+        return list(tasks)
+    parts = 1
+    if workers:  # one group for each worker at least, each of two replicas or more
+        parts = max(1, math.ceil(workers / len(together)))
+    grouped, placed = [], set()
+    for members in together.values():
+        split = max(1, min(parts, len(members) // 2))
+        for g in range(split):
+            part = members[len(members) * g // split: len(members) * (g + 1) // split]
+            grouped.append({"name": "group:" + part[0]["name"], "members": part})
+            placed.update(t["name"] for t in part)
+    log.info("%d replicas of %d points stepped together, in %d groups",
+             len(placed), len(together), len(grouped))
+    return grouped + [t for t in tasks if t["name"] not in placed]
+
+
+def point_results(result: Mapping[str, Any], members: Mapping[str, list[str]]) -> list[dict]:
+    """A task's result as the points' results: a group's members', or the one point's. A
+    group whose worker returned nothing (it died, a Dask task was lost) gives each member its
+    error."""
+    if "group" in result:
+        return list(result["group"])
+    names = members.get(result["name"])
+    if names is None:
+        return [dict(result)]
+    return [{**result, "name": name} for name in names]
