@@ -1,6 +1,6 @@
-"""What whole commands cost: a run against the numba program, start-up, replicas, reporting, orbit.
+"""What whole commands cost: a run against numba, start-up, replicas, sweeps, reporting, orbit.
 
-Five measurements, one sub-command each (T(2,3) at the defaults unless said otherwise; cases
+Six measurements, one sub-command each (T(2,3) at the defaults unless said otherwise; cases
 interleaved, medians, ratios as medians of the per-repetition ratios; wall time and the
 children's CPU time; ``benchmarks/harness.py``):
 
@@ -15,6 +15,10 @@ children's CPU time; ``benchmarks/harness.py``):
 ``replicas``
     One ``knotmm run`` of K replicas (``run.replicas = K``) against K single runs with the
     replicas' seeds one after another; the ratio per repetition and its median.
+``sweep``
+    ``knotmm sweep`` of ``--points`` values of the bending stiffness with ``seeds = K``: each
+    point's replicas stepped together (``run.replica_stepping = "auto"``) against one run per
+    replica (``"one_after_another"``), local workers as ``knotmm sweep`` picks them.
 ``reporting``
     What one output frame of a plugin-engine run costs (N = 90, CPU platform), per call:
     energies (one ``getGroupEnergies`` call against ``setPositions`` and a ``getState`` per
@@ -35,6 +39,7 @@ Run on demand (not part of the tests)::
         --variant reference:run.topology_check_interval=0;run.platform=\\"Reference\\"
     python benchmarks/bench_workflow.py startup --repeats 5                   # target (b)
     python benchmarks/bench_workflow.py replicas --replicas 8 --beads 90 --duration 40
+    python benchmarks/bench_workflow.py sweep --points 2 --seeds 8 --beads 40 --peclet 2
     python benchmarks/bench_workflow.py reporting --calls 300
     python benchmarks/bench_workflow.py orbit --beads 40 60 90 120
     python benchmarks/bench_workflow.py startup --quick     # any sub-command: a smoke run
@@ -177,6 +182,45 @@ def cmd_replicas(args):
           f"(N = {args.beads}, {args.duration:g} tau_d, Pe = "
           f"{args.peclet if args.peclet is not None else 'inf'})")
     return summary, samples, {"ratio": ratios[together], "ratio_one_after_another": ratios[apart]}
+
+
+# -- sweep ----------------------------------------------------------------------------------
+def cmd_sweep(args):
+    work = args.work
+    stiffness = ", ".join(f"{3.0 * (i + 1):g}" for i in range(args.points))
+    peclet = "" if args.peclet is None else f"peclet = {args.peclet}\n"
+    sweep_file = work / "sweep.toml"
+    sweep_file.write_text(
+        f"[knot]\nbeads = {args.beads}\n[run]\nduration = {args.duration}\n{peclet}"
+        f"topology_check_interval = 0.0\n[sweep]\n\"model.bending_stiffness\" = [{stiffness}]\n"
+        f"seeds = {args.seeds}\nknot_samples = 0\nplots = false\n")
+
+    def sweep(stepping):
+        def go():
+            out = work / f"sweep_{stepping}"
+            cmd = [*harness.knotmm_command(), "sweep", str(sweep_file), "--out", str(out),
+                   "--set", f"run.replica_stepping={stepping}"]
+            if out.exists():
+                import shutil
+
+                shutil.rmtree(out)
+            result = harness.timed(cmd)
+            result["last"] = result["last"].replace(str(out), "OUT")
+            if result["rc"] != 0:
+                raise SystemExit(f"knotmm sweep failed:\n{result['last']}")
+            return result
+        return go
+
+    together, apart = "replicas of a point together", "one run per replica"
+    samples = harness.interleave({together: sweep("auto"), apart: sweep("one_after_another")},
+                                 args.repeats, log=print)
+    summary = _walls(samples)
+    ratio = harness.ratio(samples, together, apart, "wall")
+    print(f"median: {args.points} points x {args.seeds} seeds, together "
+          f"{summary[together]['median']:.2f} s, one run per replica "
+          f"{summary[apart]['median']:.2f} s (ratio {ratio:.3f}) (N = {args.beads}, "
+          f"{args.duration:g} tau_d, Pe = {args.peclet if args.peclet is not None else 'inf'})")
+    return summary, samples, {"ratio": ratio}
 
 
 # -- reporting ------------------------------------------------------------------------------
@@ -348,6 +392,15 @@ def main(argv=None):
     s.add_argument("--peclet", type=float, default=None)
     s.set_defaults(func=cmd_replicas)
 
+    s = sub.add_parser("sweep", help="a sweep's seeds stepped together against one run each")
+    harness.add_options(s, repeats=3)
+    s.add_argument("--points", type=int, default=2)
+    s.add_argument("--seeds", type=int, default=8)
+    s.add_argument("--beads", type=int, default=40)
+    s.add_argument("--duration", type=float, default=10.0)
+    s.add_argument("--peclet", type=float, default=2.0)
+    s.set_defaults(func=cmd_sweep)
+
     s = sub.add_parser("reporting", help="what one output frame costs")
     harness.add_options(s, repeats=3)
     s.add_argument("--calls", type=int, default=200)
@@ -367,6 +420,7 @@ def main(argv=None):
         args.repeats = 1
         quick = {"run": dict(duration=1.0), "startup": {},
                  "replicas": dict(replicas=2, beads=40, duration=1.0),
+                 "sweep": dict(points=1, seeds=2, beads=30, duration=8.0),
                  "reporting": dict(calls=10, run=1.0), "orbit": dict(beads=[40], modes=2)}
         for key, value in quick[args.command].items():
             setattr(args, key, value)
