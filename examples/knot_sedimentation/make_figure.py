@@ -292,6 +292,184 @@ def _parse(argv):
     return ap.parse_args(argv)
 
 
+def set_fits(rows: list[dict]) -> tuple[dict, list[dict]]:
+    """Per set, the fits of ``V / V0`` against the ACN and the crossing number (all 7 knots),
+    and the table of every fit (ACN and crossing number, all 7 and the 6 knotted types)."""
+    per_set, table = {}, []
+    for label in dict.fromkeys(r["set"] for r in rows):
+        sub = [r for r in rows if r["set"] == label]
+        x = np.array([r["ACN"] for r in sub])
+        y = np.array([r["V_over_V0"] for r in sub])
+        c = np.array([r["crossing_number"] for r in sub], float)
+        per_set[label] = {"ACN": linear_fit(x, y), "crossing_number": linear_fit(c, y)}
+        knotted = c > 0
+        for xname, xs in (("ACN", x), ("crossing_number", c)):
+            for which, mask in (("all", np.ones_like(knotted)), ("knots", knotted)):
+                table.append({"set": label, "x": xname, "points": which}
+                             | linear_fit(xs[mask], y[mask]))
+    return per_set, table
+
+
+#: Offsets (points) tried for a knot's label around its marker, nearest first, upper right
+#: first: ``(dx, dy)``; the text is aligned away from the marker.
+LABEL_OFFSETS = tuple((r * dx, r * dy) for r in (5, 9, 14, 20)
+                      for dx, dy in ((1, 1), (1, -1), (-1, 1), (-1, -1), (1, 0), (-1, 0),
+                                     (0, 1), (0, -1)))
+
+
+def place_labels(ax, xs, ys, texts, color, fontsize: float = 9.0) -> list:
+    """Name each marker ``(xs[i], ys[i])`` with ``texts[i]`` where no other label and no
+    marker is: the first offset of :data:`LABEL_OFFSETS` whose box lies inside the axes and
+    clear of the labels placed before it and of every marker (a 10-point square). A label
+    with no free place goes to the least crowded one, with a line to its marker.
+
+    Call after the figure's layout is final (positions are measured in pixels).
+
+    Returns
+    -------
+    list of matplotlib Text (annotations)
+    """
+    fig = ax.figure
+    renderer = fig.canvas.get_renderer()
+    frame = ax.get_window_extent(renderer)
+    pts = ax.transData.transform(np.column_stack([xs, ys]))
+    marker = 5.0 * fig.dpi / 72.0  # half a marker box, in pixels
+    gap = 2.0 * fig.dpi / 72.0  # between two labels, in pixels
+    from matplotlib.transforms import Bbox
+
+    markers = [Bbox.from_extents(px - marker, py - marker, px + marker, py + marker)
+               for px, py in pts]
+    placed, out = [], []
+    for i in np.argsort(xs, kind="stable"):
+        best, best_cost = None, math.inf
+        for dx, dy in LABEL_OFFSETS:
+            ha = "left" if dx > 0 else "right" if dx < 0 else "center"
+            va = "bottom" if dy > 0 else "top" if dy < 0 else "center"
+            text = ax.annotate(texts[i], (xs[i], ys[i]), textcoords="offset points",
+                               xytext=(dx, dy), ha=ha, va=va, fontsize=fontsize, color=color)
+            box = text.get_window_extent(renderer)
+            inside = (box.x0 >= frame.x0 and box.x1 <= frame.x1 and box.y0 >= frame.y0
+                      and box.y1 <= frame.y1)
+            hits = sum(box.padded(gap).overlaps(b) for b in placed) * 10 + sum(
+                box.overlaps(m) for j, m in enumerate(markers) if j != i)
+            cost = hits + (0 if inside else 100)
+            if cost < best_cost:
+                if best is not None:
+                    best.remove()
+                best, best_cost = text, cost
+            else:
+                text.remove()
+            if cost == 0:
+                break
+        if best_cost > 0:  # crowded: the least bad place, with a line to its marker
+            best.remove()
+            dx, dy = (24, 24) if ys[i] < np.nanmean(ys) else (24, -24)
+            best = ax.annotate(texts[i], (xs[i], ys[i]), textcoords="offset points",
+                               xytext=(dx, dy), ha="left", va="center", fontsize=fontsize,
+                               color=color, arrowprops={"arrowstyle": "-", "color": color,
+                                                        "lw": 0.6})
+        placed.append(best.get_window_extent(renderer))
+        out.append(best)
+    return out
+
+
+def acn_figure(rows: list[dict], per_set: dict):
+    """``V / V0`` against the ACN, one panel per set, each knot named beside its point.
+
+    Parameters
+    ----------
+    rows : list of dict
+        :func:`read_set`'s rows.
+    per_set : dict
+        :func:`set_fits`' first result.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Drawn on an Agg canvas, 150 dpi.
+    """
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    labels = list(dict.fromkeys(r["set"] for r in rows))
+    ncols = min(len(labels), 4)
+    nrows = math.ceil(len(labels) / ncols)
+    fig = Figure(figsize=(4.0 * ncols, 3.6 * nrows + 0.5), dpi=150, layout="constrained")
+    FigureCanvasAgg(fig)
+    panels = fig.subplots(nrows, ncols, squeeze=False, sharey=True)
+    palette = colormaps["tab20"]  # 20 distinct colours: the full design has 16 sets
+    drawn = []
+    for k, label in enumerate(labels):
+        sub = [r for r in rows if r["set"] == label]
+        x = np.array([r["ACN"] for r in sub])
+        y = np.array([r["V_over_V0"] for r in sub])
+        color = palette(k % 20)
+        fit = per_set[label]["ACN"]
+        ax = panels[k // ncols][k % ncols]
+        ax.errorbar(x, y, yerr=[r["V_over_V0_se"] for r in sub],
+                    xerr=[r["ACN_se"] for r in sub], fmt="o", ms=5, color=color, capsize=3)
+        grid = np.linspace(np.nanmin(x), np.nanmax(x), 2)
+        ax.plot(grid, fit["intercept"] + fit["slope"] * grid, "-", color=color, lw=1)
+        span = np.nanmax(x) - np.nanmin(x)
+        ax.set_xlim(np.nanmin(x) - 0.08 * span - 1, np.nanmax(x) + 0.15 * span + 1)
+        ax.set_title(f"{label}\nslope {fit['slope']:.3f}$\\pm${fit['slope_se']:.3f}, "
+                     f"$R^2$ = {fit['r2']:.2f}", fontsize=10)
+        ax.set_xlabel("ACN of the shape", fontsize=10)
+        ax.tick_params(labelsize=9)
+        drawn.append((ax, x, y, [r["knot"] for r in sub], color))
+    for k in range(len(labels), nrows * ncols):
+        panels[k // ncols][k % ncols].set_visible(False)
+    for row in panels:
+        row[0].set_ylabel("V / V(unknot)", fontsize=10)
+    lo = min(r["V_over_V0"] - r["V_over_V0_se"] for r in rows)
+    hi = max(r["V_over_V0"] + r["V_over_V0_se"] for r in rows)
+    panels[0][0].set_ylim(lo - 0.1 * (hi - lo), hi + 0.12 * (hi - lo))
+    fig.suptitle("Sedimentation speed of knotted flexible rings against the ACN "
+                 "(mean $\\pm$ s.e. over replicas)", fontsize=12)
+    fig.canvas.draw()  # the layout first: labels are placed in pixels, then it is frozen
+    fig.set_layout_engine("none")
+    for ax, x, y, texts, color in drawn:  # the set's colour darkened: pale ones stay legible
+        place_labels(ax, x, y, texts, tuple(0.55 * np.asarray(color[:3])))
+    return fig
+
+
+def crossing_figure(rows: list[dict], per_set: dict):
+    """``V / V0`` against the minimal crossing number, all sets on one axis (sets side by
+    side), the legend beside the axes. Returns an Agg-canvas Figure (150 dpi)."""
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    labels = list(dict.fromkeys(r["set"] for r in rows))
+    fig = Figure(figsize=(12.5, 6.0), dpi=150, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    palette = colormaps["tab20"]
+    for k, label in enumerate(labels):
+        sub = [r for r in rows if r["set"] == label]
+        y = np.array([r["V_over_V0"] for r in sub])
+        c = np.array([r["crossing_number"] for r in sub], float)
+        fit = per_set[label]["crossing_number"]
+        color = palette(k % 20)
+        shift = 0.5 * (k - (len(labels) - 1) / 2) / max(len(labels), 1)
+        ax.errorbar(c + shift, y, yerr=[r["V_over_V0_se"] for r in sub], fmt="o",
+                    color=color, capsize=2, ms=4,
+                    label=f"{label}: slope {fit['slope']:.3f}$\\pm${fit['slope_se']:.3f}, "
+                          f"$R^2$ = {fit['r2']:.2f}")
+        grid = np.array([0.0, max(KNOTS.values())])
+        ax.plot(grid, fit["intercept"] + fit["slope"] * grid, "-", color=color, lw=0.8)
+    ax.set_xlabel("minimal crossing number of the knot type", fontsize=10)
+    ax.set_ylabel("V / V(unknot)", fontsize=10)
+    ax.set_xticks(sorted(set(KNOTS.values())))
+    ax.tick_params(labelsize=9)
+    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8.5, frameon=False,
+              borderaxespad=0.0)
+    ax.set_title("Sedimentation speed against the knot type (mean $\\pm$ s.e. over "
+                 "replicas; lines: fits over all 7)", fontsize=11)
+    return fig
+
+
 def main(argv=None) -> int:
     args = _parse(argv)
     sets = []
@@ -309,73 +487,17 @@ def main(argv=None) -> int:
         for row in rows:
             writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v)
                              for k, v in row.items()})
-
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    labels = list(dict.fromkeys(r["set"] for r in rows))
-    ncols = min(len(labels), 4)
-    nrows = math.ceil(len(labels) / ncols)
-    fig, panels = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 3.3 * nrows), squeeze=False,
-                               sharey=True)
-    fig_c, ax_c = plt.subplots(figsize=(7.5, 4.8))
-    fits = []
-    for k, label in enumerate(labels):
-        sub = [r for r in rows if r["set"] == label]
-        x = np.array([r["ACN"] for r in sub])
-        x_se = np.array([r["ACN_se"] for r in sub])
-        y = np.array([r["V_over_V0"] for r in sub])
-        y_se = np.array([r["V_over_V0_se"] for r in sub])
-        c = np.array([r["crossing_number"] for r in sub], float)
-        color = plt.cm.tab20(k % 20)  # 20 distinct colours: the full design has 16 sets
-        fit = linear_fit(x, y)
-        fit_c = linear_fit(c, y)
-        knotted = c > 0
-        for xname, xs in (("ACN", x), ("crossing_number", c)):
-            for which, mask in (("all", np.ones_like(knotted)), ("knots", knotted)):
-                f = linear_fit(xs[mask], y[mask])
-                fits.append({"set": label, "x": xname, "points": which} | f)
+    per_set, fits = set_fits(rows)
+    for label, f in per_set.items():
+        fit, fit_c = f["ACN"], f["crossing_number"]
+        v0 = next(r for r in rows if r["set"] == label and r["knot"] == "0_1")
         print(f"{label}: V/V0 = {fit['intercept']:.4f} + ({fit['slope']:.4f} +- "
               f"{fit['slope_se']:.4f}) ACN, R^2 = {fit['r2']:.3f} (n = {fit['n']}); "
               f"against the crossing number: slope {fit_c['slope']:.4f} +- "
-              f"{fit_c['slope_se']:.4f}, R^2 = {fit_c['r2']:.3f}; V0 = {sub[0]['V']:.3f} "
-              f"+- {sub[0]['V_se']:.3f} d/tau_d")
-        # one panel per set against the ACN (the sets' ACN ranges differ widely)
-        ax = panels[k // ncols][k % ncols]
-        ax.errorbar(x, y, yerr=y_se, xerr=x_se, fmt="o", color=color, capsize=3)
-        grid = np.linspace(np.nanmin(x), np.nanmax(x), 2)
-        ax.plot(grid, fit["intercept"] + fit["slope"] * grid, "-", color=color, lw=1)
-        for r, xs in zip(sub, x, strict=True):
-            ax.annotate(r["knot"], (xs, r["V_over_V0"]), textcoords="offset points",
-                        xytext=(4, 4), fontsize=7, color=color)
-        ax.set_title(f"{label}\nslope {fit['slope']:.3f}$\\pm${fit['slope_se']:.3f}, "
-                     f"$R^2$ = {fit['r2']:.2f}", fontsize=8)
-        ax.set_xlabel("ACN of the sedimenting shape", fontsize=8)
-        # all sets on one axis against the crossing number, side by side
-        shift = 0.5 * (k - (len(labels) - 1) / 2) / max(len(labels), 1)
-        ax_c.errorbar(c + shift, y, yerr=y_se, fmt="o", color=color, capsize=2, ms=4,
-                      label=f"{label}: slope {fit_c['slope']:.3f}$\\pm${fit_c['slope_se']:.3f}, "
-                            f"$R^2$ = {fit_c['r2']:.2f}")
-        grid = np.array([0.0, max(KNOTS.values())])
-        ax_c.plot(grid, fit_c["intercept"] + fit_c["slope"] * grid, "-", color=color, lw=0.8)
-    for k in range(len(labels), nrows * ncols):
-        panels[k // ncols][k % ncols].set_visible(False)
-    for row in panels:
-        row[0].set_ylabel("V / V(unknot)")
-    fig.suptitle("Sedimentation speed of knotted flexible rings against the ACN "
-                 "(mean $\\pm$ s.e. over replicas)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(args.out / "v_over_v0_vs_acn.png", dpi=120)
-    ax_c.set_xlabel("minimal crossing number of the knot type")
-    ax_c.set_ylabel("V / V(unknot)")
-    ax_c.set_xticks(sorted(set(KNOTS.values())))
-    ax_c.legend(fontsize=6)
-    ax_c.set_title("Sedimentation speed against the knot type (mean $\\pm$ s.e. over replicas; "
-                   "fits over all 7)",
-                   fontsize=9)
-    fig_c.tight_layout()
-    fig_c.savefig(args.out / "v_over_v0_vs_crossing_number.png", dpi=120)
+              f"{fit_c['slope_se']:.4f}, R^2 = {fit_c['r2']:.3f}; V0 = {v0['V']:.3f} "
+              f"+- {v0['V_se']:.3f} d/tau_d")
+    acn_figure(rows, per_set).savefig(args.out / "v_over_v0_vs_acn.png")
+    crossing_figure(rows, per_set).savefig(args.out / "v_over_v0_vs_crossing_number.png")
     with (args.out / "fits.csv").open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(fits[0]))
         writer.writeheader()

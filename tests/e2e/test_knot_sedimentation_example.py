@@ -132,3 +132,60 @@ def test_knot_checks_come_from_the_runs_own_record(mf, tmp_path):
     # the runs' record wins over summary.csv's (where replica 1 of each knot ends as 0_1)
     assert mf.knot_changes(sweep)[("", "3_1")] == (1, 1, "+3_1;+7_5")
     assert mf.knot_changes(sweep)[("", "0_1")] == (0, 1, "0_1")
+
+
+#: The README's 16 sets: label -> directory under results/ (the saved replicas.json files).
+SAVED_SETS = {f"{who} {window}": f"{prefix}{name}"
+              for who, prefix in (("N120 rep", ""), ("N90 rep", "n90_"),
+                                  ("N120 norep", "norep_"), ("N90 norep", "n90_norep_"))
+              for window, name in (("Pe=inf 20-70", "pe_inf_early"),
+                                   ("Pe=inf 150-200", "pe_inf_late"), ("Pe=10", "pe10"),
+                                   ("Pe=1", "pe1"))}
+
+
+@pytest.fixture(scope="module")
+def saved_rows(mf):
+    results = SCRIPT.parent / "results"
+    return [row for label, d in SAVED_SETS.items() for row in mf.read_set(label, results / d)]
+
+
+def test_readme_command_names_the_16_saved_sets(mf):
+    """The README's command lists every set as LABEL=DIR, as this test reads them."""
+    readme = (SCRIPT.parent / "README.md").read_text()
+    for label, d in SAVED_SETS.items():
+        assert f'"{label}=results/{d}"' in readme, label
+
+
+def test_saved_figure_knot_labels_overlap_nothing(mf, saved_rows):
+    """Issue 35: the knot labels were printed over each other ("4512" for 4_1 and 5_2). On
+    the saved data of all 16 sets: no two texts of the figure overlap (2 px apart), every
+    knot label lies inside its panel, near its own marker (or joined to it by a line), and
+    no text is smaller than 8 pt at the figure's 150 dpi."""
+    import sys
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from drawn_text import overlapping_texts, smallest_text_px
+
+    per_set, _ = mf.set_fits(saved_rows)
+    fig = mf.acn_figure(saved_rows, per_set)
+    assert overlapping_texts(fig, pad=1.0) == []
+    assert smallest_text_px(fig) >= 8 * fig.dpi / 72 - 1e-9
+    renderer = fig.canvas.get_renderer()
+    named = 0
+    for ax in fig.axes:
+        if not ax.get_visible():
+            continue
+        frame = ax.get_window_extent(renderer)
+        for text in ax.texts:
+            box = text.get_window_extent(renderer)
+            assert frame.x0 <= box.x0 and box.x1 <= frame.x1, text.get_text()
+            assert frame.y0 <= box.y0 and box.y1 <= frame.y1, text.get_text()
+            point = ax.transData.transform(text.xy)
+            near = np.hypot(point[0] - np.clip(point[0], box.x0, box.x1),
+                            point[1] - np.clip(point[1], box.y0, box.y1))
+            assert near <= 30 * fig.dpi / 72 or text.arrow_patch is not None, text.get_text()
+            named += 1
+    assert named == len(saved_rows) == 16 * 7
