@@ -284,15 +284,34 @@ class ChainLayout:
         """``positions`` (..., n_beads, 3) cut into one array per chain (views)."""
         return [positions[..., s, :] for s in self.slices()]
 
+    #: Most chains :meth:`describe` names one by one; more are counted by kind and length.
+    DESCRIBE_EACH = 6
+
     def describe(self) -> str:
-        """E.g. ``"90 beads, 1 ring"`` or ``"2 chains (A: ring of 60, B: open, 30)"``."""
+        """One line, e.g. ``"90 beads, one ring"``, ``"90 beads in 2 chains (A: ring of 60,
+        B: open, 30)"``, or, past :attr:`DESCRIBE_EACH` chains, ``"600 beads in 200 chains
+        (200 open of 3)"``."""
         if self.n_chains == 1:
             kind = "ring" if self.closed[0] else "open chain"
             return f"{self.n_beads} beads, one {kind}"
-        parts = [
-            f"{cid}: {'ring of ' if ring else 'open, '}{n}"
-            for cid, n, ring in zip(self.ids, self.lengths, self.closed, strict=True)
-        ]
+        if self.n_chains <= self.DESCRIBE_EACH:
+            parts = [
+                f"{cid}: {'ring of ' if ring else 'open, '}{n}"
+                for cid, n, ring in zip(self.ids, self.lengths, self.closed, strict=True)
+            ]
+        else:
+            kinds: dict[tuple[bool, int], int] = {}
+            for n, ring in zip(self.lengths, self.closed, strict=True):
+                kinds[(ring, n)] = kinds.get((ring, n), 0) + 1
+            parts = [f"{count} {'rings' if ring else 'open'} of {n}" if count > 1
+                     else f"1 {'ring' if ring else 'open'} of {n}"
+                     for (ring, n), count in kinds.items()]
+            if len(kinds) > self.DESCRIBE_EACH:
+                rings = sum(self.closed)
+                parts = [p for p in (f"{rings} rings" if rings else "",
+                                     f"{self.n_chains - rings} open" if rings < self.n_chains
+                                     else "") if p]
+                parts.append(f"{min(self.lengths)}-{max(self.lengths)} beads each")
         return f"{self.n_beads} beads in {self.n_chains} chains ({', '.join(parts)})"
 
     # -- connectivity ---------------------------------------------------------------------

@@ -72,3 +72,16 @@ def test_chains_are_read_from_bonds():
     assert ChainLayout.from_bonds(12, []) is None
     assert ChainLayout.from_bonds(4, [(0, 2), (1, 3)]) is None  # not bead chains in order
     assert ChainLayout.from_bonds(4, [(0, 1), (1, 2)]) is None  # bead 3 bonded to nothing
+
+
+def test_describe_is_one_short_line_for_any_number_of_chains():
+    from knotmm.model.layout import ChainLayout
+
+    assert ChainLayout((90,), (True,)).describe() == "90 beads, one ring"
+    assert ChainLayout((60, 30), (True, False)).describe() == (
+        "90 beads in 2 chains (A: ring of 60, B: open, 30)")
+    many = ChainLayout((60,) * 2 + (3,) * 198, (True,) * 2 + (False,) * 198)
+    text = many.describe()
+    assert text == "714 beads in 200 chains (2 rings of 60, 198 open of 3)"
+    lots = ChainLayout(tuple(range(3, 103)), (False,) * 100)  # 100 lengths: still one line
+    assert lots.describe() == "5250 beads in 100 chains (100 open, 3-102 beads each)"
