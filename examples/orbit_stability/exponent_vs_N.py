@@ -17,14 +17,7 @@ import csv
 import time
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from knotmm.config import RunConfig  # noqa: E402
-from knotmm.orbit import orbit_of_run  # noqa: E402
-from knotmm.workflow import run  # noqa: E402
+from knotmm.plotstyle import label, plain_ticks
 
 COLUMNS = ("beads", "period", "run_tau_swirl", "rotation_per_period", "tau_swirl_over_tau_sed",
            "tau_rot_over_tau_sed", "residual", "leading_modulus", "leading_angle",
@@ -33,6 +26,10 @@ COLUMNS = ("beads", "period", "run_tau_swirl", "rotation_per_period", "tau_swirl
 
 
 def one(n: int, out: Path, duration: float) -> dict:
+    from knotmm.config import RunConfig
+    from knotmm.orbit import orbit_of_run
+    from knotmm.workflow import run
+
     run_dir = out / f"N{n}"
     cfg = RunConfig.from_dict({"knot": {"beads": n}, "run": {"duration": duration},
                                "output": {"frame_interval": 0.25}})
@@ -57,6 +54,31 @@ def one(n: int, out: Path, duration: float) -> dict:
     }
 
 
+def plot_exponents(rows: list[dict], path: Path) -> Path:
+    """``exponent_vs_N.png``: the leading exponent and the two largest multiplier moduli
+    against N (rows as in ``exponent_vs_N.csv``)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9, 3.5), layout="constrained", dpi=110)
+    FigureCanvasAgg(fig)
+    a, b = fig.subplots(1, 2)
+    n = [float(r["beads"]) for r in rows]
+    a.plot(n, [float(r["leading_exponent"]) for r in rows], "o-")
+    a.axhline(0, color="k", lw=0.8)
+    a.set_ylabel(label("exponent"))
+    b.plot(n, [float(r["leading_modulus"]) for r in rows], "o-", label=r"$|\mu_1|$")
+    b.plot(n, [float(r["second_modulus"]) for r in rows], "s--", label=r"next $|\mu|$")
+    b.axhline(1, color="k", lw=0.8)
+    b.set_ylabel(r"Floquet multiplier $|\mu|$")
+    b.legend(frameon=False)
+    for ax in (a, b):
+        ax.set_xlabel(label("knot.beads"))
+        plain_ticks(ax)
+    fig.savefig(path)
+    return path
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--beads", type=int, nargs="+", default=[40, 60, 90, 120])
@@ -77,20 +99,7 @@ def main() -> None:
         writer = csv.DictWriter(fh, fieldnames=COLUMNS)
         writer.writeheader()
         writer.writerows(rows)
-    fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.5))
-    n = [r["beads"] for r in rows]
-    a.plot(n, [r["leading_exponent"] for r in rows], "o-")
-    a.axhline(0, color="k", lw=0.8)
-    a.set_xlabel("N (beads)")
-    a.set_ylabel("leading exponent ln|mu1|/T [1/tau_d]")
-    b.plot(n, [r["leading_modulus"] for r in rows], "o-", label="|mu1|")
-    b.plot(n, [r["second_modulus"] for r in rows], "s--", label="next |mu|")
-    b.axhline(1, color="k", lw=0.8)
-    b.set_xlabel("N (beads)")
-    b.set_ylabel("Floquet multiplier modulus")
-    b.legend()
-    fig.tight_layout()
-    fig.savefig(out / "exponent_vs_N.png", dpi=110)
+    plot_exponents(rows, out / "exponent_vs_N.png")
     print(f"wrote exponent_vs_N.csv, exponent_vs_N.png in {out}")
 
 
