@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from knotmm.analysis.linkage import NOT_DETERMINED, entry_chains, linkage
 from knotmm.analysis.objects import END_TO_END_KEYS, RING_KEYS, SEPARATE, STRUCTURE_KEYS
 from knotmm.io.run_data import RunData
 from knotmm.model.layout import chain_ids
@@ -139,29 +140,56 @@ def linking_series(times, positions, rings: list[tuple[str, slice]], samples: in
 
 def _chain_data(data: RunData, k: int, sl: slice, closed: bool) -> RunData:
     """Chain ``k`` of ``data`` as a run of its own (its run-file entry and facts)."""
+    return _subset(data, [k], [sl], {"kind": "component", "closed": closed})
+
+
+def _subset(data: RunData, ks: list[int], slices: list[slice], default_knot: dict,
+            extra_facts: dict | None = None) -> RunData:
+    """Chains ``ks`` (bead ranges ``slices``, consecutive) of ``data`` as a run of their own.
+
+    The ``[knot]`` table is the ``[[chains]]`` entry that built exactly these chains (a chain
+    of its own, or a link entry's components together), else ``default_knot``; ``[knotmm]``
+    keeps the run's facts but those of the whole system, with one chain's own facts
+    (``[[knotmm.chains]]``) for one chain, ``extra_facts`` for several.
+    """
     config = copy.deepcopy(data.config)
     entries = config.pop("chains", None)
-    n_chains_facts = (config.get("knotmm", {}) or {}).get("chains") or []
-    knot = {"kind": "component", "closed": closed}
-    if isinstance(entries, list) and k < len(entries) and len(entries) == len(n_chains_facts):
-        knot = {key: v for key, v in entries[k].items() if key not in ("offset", "rotation")}
-        knot["closed"] = closed
+    chain_facts = (config.get("knotmm", {}) or {}).get("chains") or []
+    lengths = [s.stop - s.start for s, _ in _all_chains(data)]
+    built = entry_chains(entries, lengths) if lengths else None
+    if built is None and isinstance(entries, list) and len(entries) == len(lengths):
+        built = [[k] for k in range(len(lengths))]  # entries without their bead counts
+    knot = dict(default_knot)
+    if built is not None and ks in built:
+        entry = entries[built.index(ks)]
+        knot = {key: v for key, v in entry.items() if key not in ("offset", "rotation")}
+        knot["closed"] = default_knot.get("closed", True)
     config["knot"] = knot
     facts = dict(config.get("knotmm", {}) or {})
-    mine = n_chains_facts[k] if k < len(n_chains_facts) else {}
     for key in ("chains", "layout", "knot_type_changes", "knot_type", "knot_type_start",
-                "linking_numbers", "linking_numbers_now", "linking_number_changes"):
+                "linking_numbers", "linking_numbers_now", "linking_number_changes", "link",
+                "links", "elasto_gravitation_numbers"):
         facts.pop(key, None)
-    facts.update({key: v for key, v in dict(mine).items() if key not in ("id", "beads", "closed")})
+    if len(ks) == 1:
+        mine = chain_facts[ks[0]] if ks[0] < len(chain_facts) else {}
+        facts.update({key: v for key, v in dict(mine).items()
+                      if key not in ("id", "beads", "closed")})
+    facts.update(extra_facts or {})
     config["knotmm"] = facts
-    start = sl.start
+    start, stop = slices[0].start, slices[-1].stop
     bonds = np.asarray(data.bonds).reshape(-1, 2)
-    inside = (bonds >= start).all(axis=1) & (bonds < sl.stop).all(axis=1)
+    inside = (bonds >= start).all(axis=1) & (bonds < stop).all(axis=1)
     return RunData(
-        data.times, np.ascontiguousarray(data.positions[:, sl]), bonds[inside] - start, config,
-        data.frame_interval, data.trajectory, data.topology, data.run_file, data.directory,
-        [],
+        data.times, np.ascontiguousarray(data.positions[:, start:stop]), bonds[inside] - start,
+        config, data.frame_interval, data.trajectory, data.topology, data.run_file,
+        data.directory, [],
     )
+
+
+def _all_chains(data: RunData) -> list[tuple[slice, bool]]:
+    from knotmm.analysis.shape import chains_of
+
+    return chains_of(data)
 
 
 def _pair_row(positions, sel, a, b, ids) -> dict[str, Any]:
@@ -188,26 +216,12 @@ def _mean(values: np.ndarray) -> float:
     return float(finite.mean()) if finite.size else float("nan")
 
 
-def one_link(data: RunData, chains: list[tuple[slice, bool]], linking: dict) -> str | None:
-    """The link's name when the whole system is one link, else None.
-
-    One link: every chain a ring, and either the run file built it as a link (run.toml's
-    ``[knotmm] link``) or the rings' nonzero linking numbers at the start join them all
-    (a link with linking number 0, the Whitehead link read from a file, is not recognised).
-    """
-    if len(chains) < 2 or not all(closed for _, closed in chains):
+def one_link(chains: list[tuple[slice, bool]], links) -> str | None:
+    """The link's name when the whole system is one link (every chain a ring, all of them in
+    one group of :func:`knotmm.analysis.linkage.linkage`), else None."""
+    if len(chains) < 2 or len(links.groups) != 1 or len(links.groups[0]) != len(chains):
         return None
-    facts = data.get("knotmm", {}) or {}
-    if facts.get("link") and not data.get("chains"):
-        return str(facts["link"])
-    ids = chain_ids(len(chains))
-    joined = {ids[0]}
-    for _ in ids:
-        for pair, lk in linking.items():
-            a, b = pair.split("-")
-            if lk and (a in joined or b in joined):
-                joined |= {a, b}
-    return "linked rings" if joined == set(ids) else None
+    return links.names[0] or "linked rings"
 
 
 def _swirl_from_chains(system, per_chain: list[dict]) -> None:
@@ -274,8 +288,15 @@ def analyze_system(data: RunData, chains: list[tuple[slice, bool]], analyze_one:
         start, end, changes = linking_series(data.times, data.positions, rings)
         record.update(linking_numbers=start, linking_numbers_end=end,
                       linking_number_changes=changes)
-    link = one_link(data, chains, start)
-    record["kind"] = "link" if link is not None else "separate chains"
+    links = linkage(data, chains, start)
+    if links.pairs:
+        record["linked"] = links.pairs
+    link = one_link(chains, links)
+    objects = _link_objects(data, chains, links, analyze_one, t_from, t_to, fit) if (
+        link is None) else []
+    record["kind"] = _kind(link, objects, links)
+    if objects:
+        record["links"] = objects
     whole_config = copy.deepcopy(data.config)
     if link is None:
         whole_config["knot"] = {"kind": "system", "closed": True}
@@ -292,12 +313,17 @@ def analyze_system(data: RunData, chains: list[tuple[slice, bool]], analyze_one:
                     if "knot identification skipped" not in n and "elasto-gravitation" not in n]
     if link is None:
         system.notes = [n for n in system.notes if not _about_one_chain(n)]
-        system.not_applicable.update(dict.fromkeys(STRUCTURE_KEYS, SEPARATE))
+        why = _why_no_structure(record["kind"], objects, links)
+        system.not_applicable.update(dict.fromkeys(STRUCTURE_KEYS, why))
         system.notes.insert(0, (
-            f"a system of {len(chains)} separate chains: V here is the speed of the centre of "
-            "mass of all beads; rho0, tau_sed, Rg, ACN, swirl and rotation belong to each "
-            "chain ('chains'), the pairs' distances and orientations and the linking numbers "
-            "to 'system'"))
+            f"a system of {len(chains)} chains ({record['kind']}): V here is the speed of the "
+            "centre of mass of all beads; rho0, tau_sed, Rg, ACN, swirl and rotation belong to "
+            "each chain ('chains')" + (", each link's to that link ('system.links')"
+                                        if objects else "")
+            + ", the pairs' distances and orientations and the linking numbers to 'system'"))
+        for pair in links.undetermined:
+            system.notes.append(f"chains {pair}: linked or not is not determined "
+                                f"({links.pairs[pair]['reason']}); analysed as separate chains")
     else:
         knot_keys = [k for k in RING_KEYS if k.startswith("knot_type")]
         system.not_applicable.update(dict.fromkeys(knot_keys, LINK_KNOT))
@@ -311,6 +337,54 @@ def analyze_system(data: RunData, chains: list[tuple[slice, bool]], analyze_one:
     system.extra["chains"] = per_chain
     system.extra["system"] = record
     return system
+
+
+#: analysis.json keys of a link object among other chains (``system.links``).
+LINK_KEYS = tuple(k for k in CHAIN_KEYS if k not in END_TO_END_KEYS) + (
+    "tau_swirl_source", "p_source", "q_source")
+
+
+def _link_objects(data, chains, links, analyze_one, t_from, t_to, fit) -> list[dict]:
+    """Each link among other chains analysed as one object: its rings' beads as a run of
+    their own (the link's ``[[chains]]`` entry as its ``[knot]`` table), through this same
+    analysis, so that it equals those beads analysed alone."""
+    from knotmm.analysis.shape import chains_of
+
+    ids = chain_ids(len(chains))
+    objects = []
+    for group, name in zip(links.groups, links.names, strict=True):
+        slices = [chains[k][0] for k in group]
+        if any(a.stop != b.start for a, b in zip(slices[:-1], slices[1:], strict=False)):
+            continue  # the rings of a link found by its linking numbers, apart in bead order
+        facts = {"link": name} if name else {}
+        alone = _subset(data, group, slices, {"kind": "link", "closed": True}, facts)
+        result = analyze_system(alone, chains_of(alone), analyze_one, t_from=t_from,
+                                t_to=t_to, knot_samples=0, fit=fit)
+        d = result.to_dict()
+        objects.append({"chains": [ids[k] for k in group], "link": name or "linked rings",
+                        **{key: d.get(key) for key in LINK_KEYS}, "notes": list(result.notes)})
+    return objects
+
+
+def _kind(link, objects, links) -> str:
+    """``system.kind``: what the system is, in words."""
+    if link is not None:
+        return "link"
+    if links.undetermined:
+        return "chains whose linking is " + NOT_DETERMINED
+    if links.groups:
+        return "links and separate chains"
+    return "separate chains"
+
+
+def _why_no_structure(kind: str, objects, links) -> str:
+    """Why the system as a whole has no rho0, Rg, swirl, ... (``not_applicable``)."""
+    if links.undetermined:
+        return f"{kind} ({', '.join(links.undetermined)}): each chain's own in 'chains'"
+    if links.groups:
+        return ("links and separate chains: each link's own in 'system.links', each chain's "
+                "in 'chains'")
+    return SEPARATE
 
 
 def _about_one_chain(note: str) -> bool:

@@ -490,6 +490,14 @@ def _system_rows(d: dict) -> list[tuple[str, str]]:
             f"{_fmt(pair.get('separation_angle_to_vertical_end_deg'), digits=3)} deg from the "
             f"vertical; axes {_fmt(pair['axis_angle_start_deg'], digits=3)} -> "
             f"{_fmt(pair['axis_angle_end_deg'], digits=3)} deg")))
+    for link in system.get("links", []):
+        rows.append((f"link {'-'.join(link['chains'])}", (
+            f"{link['link']}: V {_fmt(link.get('sedimentation_velocity'))}; rho0 "
+            f"{_fmt(link.get('major_radius'))}; tau_sed {_fmt(link.get('tau_sed'))}; Rg "
+            f"{_fmt(link.get('radius_of_gyration'))}; tau_swirl {_fmt(link.get('tau_swirl'))}")))
+    if system.get("linked"):
+        rows.append(("linked", "; ".join(f"{pair} {v['status']} ({v['reason']})"
+                                         for pair, v in system["linked"].items())))
     if system.get("linking_numbers"):
         start, end = system["linking_numbers"], system.get("linking_numbers_end") or {}
         text = ", ".join(f"{k}: {v} -> {end.get(k)}" for k, v in start.items())

@@ -20,15 +20,16 @@ from typing import Any
 import numpy as np
 
 from knotmm.errors import TemplateError
-from knotmm.model.layout import ChainLayout
+from knotmm.knots.identify import topoly_available
+from knotmm.model.layout import ChainLayout, chain_ids
 from knotmm.shapes.assembly import assemble, closest_between, place
-from knotmm.shapes.checks import BOND_TOLERANCE, check_template
+from knotmm.shapes.checks import BOND_TOLERANCE, check_template, submit_knot_check
 from knotmm.shapes.curves import braid_cycles
 from knotmm.shapes.links import COMMON_LINKS, LINKINFO_NAME, braid_link, named_link, torus_link
 from knotmm.shapes.open_chains import OPEN_KINDS, arc, closest_nonbonded_open, helix, straight
 from knotmm.shapes.resources import RunResources, check_memory
 from knotmm.shapes.spec import TemplateSpec
-from knotmm.shapes.template import Template
+from knotmm.shapes.template import PendingKnotCheck, Template
 from knotmm.shapes.validation import check_int, check_positive, parse_word_text
 from knotmm.units import LJ_CUTOFF_FACTOR
 
@@ -258,18 +259,25 @@ def build_link(cfg, spec: TemplateSpec, resources: RunResources,
     sigma = cfg["model.lj_sigma"]
     steric = sigma if explicit else LJ_CUTOFF_FACTOR * sigma
     parts = []
+    later = identify == "later" and topoly_available()
     for k, x in enumerate(components):
         check = check_template(x, cfg["model.bond_length"], sigma, bond_tolerance=None,
                                identify=identify == "now", min_distance=steric)
         if check.problems:
             raise TemplateError(_link_problem(cfg, f"component {k} of {shape.name}",
                                               check.problems[0]))
-        kt = check.knot_type
+
+        def conclude(check, k=k):
+            kt = check.knot_type
+            return kt, f"component {k}" + (f", {kt}" if kt else ""), list(check.notes)
+
+        kt, description, _ = conclude(check)
+        handle = submit_knot_check(x) if later else None  # judged beside the run
         parts.append(Template(
-            positions=np.ascontiguousarray(x, dtype=np.float64),
-            description=f"component {k}" + (f", {kt}" if kt else ""),
+            positions=np.ascontiguousarray(x, dtype=np.float64), description=description,
             resolved={}, writhe=check.writhe, knot_type=kt, notes=list(check.notes),
             check=check,
+            pending=None if handle is None else PendingKnotCheck(handle, None, conclude),
         ))
     if perturbation > 0.0:  # the components were apart before; say what brought them close
         for a, b, d in _close_components(components, steric):
@@ -389,9 +397,30 @@ def build_chains(cfg, build_template: Callable, spec: TemplateSpec, resources: R
     steric = LJ_CUTOFF_FACTOR * cfg["model.lj_sigma"]
     check_memory(resources, sum(p.n_beads for p in parts))
     facts = {}
-    links = [p.chain_facts for p in parts if p.chain_facts]
+    links = _global_links(parts)
     if links:
         facts["links"] = links
     system = assemble(parts, names, steric, facts)
     system.resolved = {"chains": entries}
     return system
+
+
+def _global_links(parts: list[Template]) -> list[dict]:
+    """The links among ``[[chains]]`` parts, in the system's chain names: each link's
+    ``chains`` (its components' ids) and its ``linking_numbers`` keyed by them (a part's own
+    facts name its components from ``A``)."""
+    links, first = [], 0
+    for part in parts:
+        n = part.layout.n_chains
+        if part.chain_facts:
+            local, names = ChainLayout(part.layout.lengths).ids, chain_ids(first + n)[first:]
+            rename = dict(zip(local, names, strict=True))
+            facts = dict(part.chain_facts)
+            facts["chains"] = list(names)
+            if "linking_numbers" in facts:
+                facts["linking_numbers"] = {
+                    "-".join(rename[c] for c in pair.split("-")): v
+                    for pair, v in facts["linking_numbers"].items()}
+            links.append(facts)
+        first += n
+    return links

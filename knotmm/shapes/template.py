@@ -105,9 +105,11 @@ class Template:
             :func:`build_template` gives with ``identify="now"``).
         """
         if self.parts:
+            before = [part.description for part in self.parts]
             added = [note for part in self.parts for note in part.settle_knot_type(wait)]
             self.notes.extend(added)
             self.knot_type = _joined(p.knot_type for p in self.parts)
+            self._describe_parts(before)
             return added
         pending = self.pending
         if pending is None or not (wait or pending.handle.done()):
@@ -121,6 +123,23 @@ class Template:
         for note in added:
             logger.info("template: %s", note)
         return added
+
+    def _describe_parts(self, before: list[str]) -> None:
+        """Put the chains' settled descriptions (their knot types, found after the start)
+        into the system's ("2 chains: A T(2,3), +3_1; B component 0, 0_1"), which names
+        chain ``c`` as ``"{id} {description}"`` after ``": "`` or ``"; "``."""
+        text = self.description
+        for cid, old, part in zip(self.layout.ids, before, self.parts, strict=True):
+            if part.description == old:
+                continue
+            for sep in (": ", "; "):
+                here = f"{sep}{cid} {old}"
+                at = text.find(here)
+                ends = at + len(here)
+                if at >= 0 and (ends == len(text) or text.startswith(";", ends)):
+                    text = f"{text[:at]}{sep}{cid} {part.description}{text[ends:]}"
+                    break
+        self.description = text
 
     @property
     def facts(self) -> dict[str, Any]:
