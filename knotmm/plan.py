@@ -43,15 +43,23 @@ from typing import Any
 
 from knotmm.config import RunConfig, resolve_stepping, resolve_tolerance
 from knotmm.dynamics import registry
-from knotmm.dynamics.registry import AUTO, AUTO_STIFFNESS, REGISTRY, auto_deterministic
+from knotmm.dynamics.registry import (
+    AUTO,
+    AUTO_STIFFNESS,
+    DEVICE_PLATFORMS,
+    REGISTRY,
+    auto_deterministic,
+)
+from knotmm.engine.engines import resolve_engine, select_platform
 from knotmm.engine.knot_checks import TopologyChecks, check_stop_on_change
 from knotmm.engine.simulation import Simulation
 from knotmm.model.parameters import ChainModel
-from knotmm.shapes.resources import RunResources
+from knotmm.shapes.resources import MemoryNeed, RunResources
 from knotmm.shapes.spec import TemplateSpec
 from knotmm.units import thermal_energy
 
 __all__ = [
+    "Compute",
     "Output",
     "PlanParts",
     "Placement",
@@ -61,6 +69,7 @@ __all__ = [
     "TemplateSpec",
     "make_plan",
     "prepare",
+    "resume_plan",
 ]
 
 log = logging.getLogger(__name__)
@@ -166,7 +175,7 @@ class Placement:
     mobility_threads: int
 
     @classmethod
-    def of(cls, sim: Simulation, cfg: RunConfig) -> Placement:
+    def of(cls, sim: Simulation, asked: Compute) -> Placement:
         """The placement of a built Simulation (asked of its Context)."""
         platform = sim.context.getPlatform()
         if "Precision" in platform.getPropertyNames():
@@ -174,8 +183,52 @@ class Placement:
         else:
             precision = "double" if platform.supportsDoublePrecision() else "single"
         return cls(engine=sim.engine, platform=sim.platform_name, precision=str(precision),
-                   threads=int(cfg["run.threads"]),
+                   threads=asked.threads, mobility_threads=asked.mobility_threads)
+
+    @property
+    def on_device(self) -> bool:
+        """Whether the Context runs on a device platform (CUDA, HIP, OpenCL)."""
+        return self.platform in DEVICE_PLATFORMS
+
+
+@dataclass(frozen=True)
+class Compute:
+    """Where the run file asks a run to compute, as asked (:class:`Placement`: what it got).
+
+    Attributes
+    ----------
+    engine : {"auto", "python", "plugin"}
+        ``run.engine``.
+    platform : str
+        ``run.platform`` (``"auto"`` or an OpenMM platform's name).
+    precision : {"auto", "mixed", "double"}
+        ``run.precision``.
+    threads, mobility_threads : int
+        ``run.threads``, ``run.mobility_threads``.
+    """
+
+    engine: str
+    platform: str
+    precision: str
+    threads: int
+    mobility_threads: int
+
+    @classmethod
+    def of(cls, cfg: RunConfig) -> Compute:
+        """What ``cfg`` asks."""
+        return cls(engine=str(cfg["run.engine"]), platform=str(cfg["run.platform"]),
+                   precision=str(cfg["run.precision"]), threads=int(cfg["run.threads"]),
                    mobility_threads=int(cfg["run.mobility_threads"]))
+
+    def engine_for(self, integrator: str, peclet: float) -> str:
+        """The engine a run with ``integrator`` takes
+        (:func:`knotmm.engine.engines.resolve_engine`, a named platform first checked by
+        :func:`~knotmm.engine.engines.select_platform`; warns once where the asked one
+        cannot be used). It does not depend on the chain's size."""
+        platform = self.platform
+        if platform != "auto":  # a named platform: the size (0 here) does not matter
+            platform = select_platform(platform, 0, self.threads)[0].getName()
+        return resolve_engine(self.engine, integrator, peclet, platform)
 
 
 @dataclass(frozen=True)
@@ -232,6 +285,8 @@ class PlanParts:
     duration : float
         ``run.duration``, in tau_d.
     model : ChainModel
+    compute : Compute
+        Engine, platform, precision and threads as asked.
     """
 
     stepping: Stepping
@@ -241,6 +296,7 @@ class PlanParts:
     output: Output
     duration: float
     model: ChainModel
+    compute: Compute
 
     @classmethod
     def of(cls, cfg: RunConfig) -> PlanParts:
@@ -248,7 +304,20 @@ class PlanParts:
         return cls(stepping=Stepping.of(cfg), template=TemplateSpec.of(cfg),
                    resources=RunResources.of(cfg), checks=TopologyChecks.of(cfg),
                    output=Output.of(cfg), duration=float(cfg["run.duration"]),
-                   model=ChainModel.from_config(cfg))
+                   model=ChainModel.from_config(cfg), compute=Compute.of(cfg))
+
+    def simulation(self, positions, layout, integrator, engine: str | None = None
+                   ) -> Simulation:
+        """The Simulation of these parts at ``positions`` (shape (n_beads, 3), in d) with
+        the chains of ``layout`` and a fresh ``integrator``; ``engine`` (default: the one
+        :meth:`Compute.engine_for` takes) as given (a resumed run's is its checkpoint's)."""
+        if engine is None:
+            engine = self.compute.engine_for(integrator.name, self.stepping.peclet)
+        asked = self.compute
+        return Simulation(positions, self.model, integrator, platform=asked.platform,
+                          threads=asked.threads, max_bond_length=self.template.max_bond_length,
+                          mobility_threads=asked.mobility_threads, engine=engine,
+                          layout=layout, precision=asked.precision)
 
 
 @dataclass(frozen=True)
@@ -269,8 +338,11 @@ class RunPlan:
     stepping : Stepping
     placement : Placement
     resources : knotmm.shapes.resources.RunResources
-        What the run's memory depends on (checked against the memory available for the
-        chain built).
+        What the run's memory depends on, its engine resolved (checked against the memory
+        available for the chain built).
+    memory : knotmm.shapes.resources.MemoryNeed
+        The largest allocations of this run where they live: the host's (the dense
+        Brownian noise) and the device's (a device platform's state vectors).
     output : Output
     duration : float
         ``run.duration``, in tau_d.
@@ -289,6 +361,7 @@ class RunPlan:
     stepping: Stepping
     placement: Placement
     resources: RunResources
+    memory: MemoryNeed
     output: Output
     duration: float
     checks: TopologyChecks
@@ -329,21 +402,23 @@ def prepare(cfg: RunConfig, identify: str = "now") -> PreparedRun:
 
     # 1. every part read from the run file, once
     parts = PlanParts.of(cfg)
-    stepping, spec, resources = parts.stepping, parts.template, parts.resources
+    stepping, spec = parts.stepping, parts.template
     reason = _peclet_reason(cfg, stepping.integrator)
     by_stiffness = cfg["run.integrator"] == AUTO and not math.isfinite(stepping.peclet)
-    # 2. built once: checks the integrator against run.peclet before the template
+    # 2. built once: checks the integrator against run.peclet before the template; the
+    # engine, which decides where the memory goes
     registry.warn_brownian_step(stepping.integrator, stepping.timestep, stepping.peclet)
     integrator = stepping.make_integrator()
     check_stop_on_change(parts.checks)
+    engine = parts.compute.engine_for(integrator.name, stepping.peclet)
+    resources = replace(parts.resources, engine=engine)
     # 3. the template, from typed values
     template = build_template(cfg, identify=identify, spec=spec, resources=resources)
     n_beads = int(template.positions.shape[0])
     stepping = replace(stepping, noise_method=resources.noise_method(n_beads))
     record = cfg.replace({**stepping.record, **template.resolved})
     # 4. the Simulation
-    sim = Simulation.from_config(record, template.positions, layout=template.layout,
-                                 integrator=integrator)
+    sim = parts.simulation(template.positions, template.layout, integrator, engine)
     # 5. the stiffness choice, probed once on that Simulation
     if by_stiffness:
         choice, reason = _stiffness_choice(sim)
@@ -351,27 +426,68 @@ def prepare(cfg: RunConfig, identify: str = "now") -> PreparedRun:
             stepping = replace(stepping, integrator=choice)
             record = record.replace({"run.integrator": choice})
             integrator = stepping.make_integrator()
-            if not sim.use_integrator(integrator):
+            if not sim.use_integrator(integrator):  # an engine that cannot switch in place
                 # the engine already chosen (and warned about) when the new integrator has it
                 engine = sim.engine if sim.engine in REGISTRY[choice].engines else None
-                sim = Simulation.from_config(record, template.positions, engine=engine,
-                                             layout=template.layout, integrator=integrator)
+                sim = parts.simulation(template.positions, template.layout, integrator,
+                                       engine)
     # 6. the record
-    plan = RunPlan(
+    plan = _plan(record, parts, stepping, resources, sim,
+                 {"integrator_choice": reason} if reason else {})
+    return PreparedRun(plan, template, sim)
+
+
+def resume_plan(cfg: RunConfig, positions, layout, engine: str) -> PreparedRun:
+    """The plan of a stopped run and its Simulation, from its ``run.toml`` and checkpoint.
+
+    Every choice was made when the run started and ``run.toml`` records it (the integrator
+    and step used, the template's keys): the parts are read again, no template is built and
+    no stiffness probed. The Simulation is built at the checkpoint's ``positions`` (shape
+    (n_beads, 3), in d) with the chains of ``layout`` and the ``engine`` that wrote the
+    checkpoint (a run goes on exactly only with it); the caller loads the checkpoint into it.
+
+    Parameters
+    ----------
+    cfg : RunConfig
+        The run's ``run.toml`` (``run.duration`` possibly extended).
+    positions : ndarray, shape (n_beads, 3), in d
+    layout : knotmm.model.layout.ChainLayout
+    engine : {"python", "plugin"}
+
+    Returns
+    -------
+    PreparedRun
+        Its ``template`` is None.
+    """
+    parts = PlanParts.of(cfg)
+    n_beads = int(len(positions))
+    resources = replace(parts.resources, engine=engine)
+    stepping = replace(parts.stepping, noise_method=resources.noise_method(n_beads))
+    registry.warn_brownian_step(stepping.integrator, stepping.timestep, stepping.peclet)
+    resources.check(n_beads)
+    sim = parts.simulation(positions, layout, stepping.make_integrator(), engine)
+    return PreparedRun(_plan(cfg, parts, stepping, resources, sim, {}), None, sim)
+
+
+def _plan(record: RunConfig, parts: PlanParts, stepping: Stepping, resources: RunResources,
+          sim: Simulation, reasons: dict[str, str]) -> RunPlan:
+    """The frozen plan of a built Simulation (:func:`prepare`'s last step)."""
+    placement = Placement.of(sim, parts.compute)
+    return RunPlan(
         config=record,
         record=record.to_dict(),
-        template=spec,
+        template=parts.template,
         model=sim.model,
         stepping=stepping,
-        placement=Placement.of(sim, record),
+        placement=placement,
         resources=resources,
+        memory=resources.need(sim.n_beads, device=placement.on_device),
         output=parts.output,
         duration=parts.duration,
         checks=parts.checks,
-        n_beads=n_beads,
-        reasons=MappingProxyType({"integrator_choice": reason} if reason else {}),
+        n_beads=sim.n_beads,
+        reasons=MappingProxyType(reasons),
     )
-    return PreparedRun(plan, template, sim)
 
 
 def make_plan(cfg: RunConfig) -> RunPlan:

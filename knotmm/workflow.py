@@ -13,8 +13,10 @@ reporters in :mod:`knotmm.engine` (``docs/architecture.md``). :func:`run`, as ps
         interrupted (naming the signal); unlock
 
 :func:`resume` locks the directory, checks that run.toml's parameters are the checkpoint's
-(run.duration may grow), loads the checkpoint into a new Simulation, cuts the trajectory
-and observables back to what the checkpoint counts, and goes on the same way.
+(run.duration may grow), plans it again from run.toml (:func:`knotmm.plan.resume_plan`: the
+choices run.toml records, the checkpoint's engine and chains), loads the checkpoint into the
+plan's Simulation, cuts the trajectory and observables back to what the checkpoint counts,
+and goes on the same way.
 """
 
 from __future__ import annotations
@@ -46,7 +48,6 @@ from knotmm.engine.knot_checks import (
     record_linking,
 )
 from knotmm.engine.reporters import DCDReporter, ObservablesReporter, ProgressReporter
-from knotmm.engine.simulation import Simulation
 from knotmm.errors import (
     ConfigError,
     KnotmmError,
@@ -79,7 +80,7 @@ from knotmm.io.rundir import (
 )
 from knotmm.io.vmd import write_vmd_script
 from knotmm.model.layout import ChainLayout
-from knotmm.plan import Output, prepare
+from knotmm.plan import Output, RunPlan, prepare, resume_plan
 
 __all__ = ["RESUMABLE_KEYS", "RunResult", "OutputFault", "build_run", "run", "resume"]
 
@@ -225,8 +226,7 @@ def run(
     except BaseException:
         lock.release()
         raise
-    course = _Course(plan.record, plan.output, plan.duration, plan.checks)
-    return _drive(sim, course, directory, facts, None, progress, wall0, lock, template,
+    return _drive(sim, _Course.of(plan), directory, facts, None, progress, wall0, lock, template,
                   wait_for_checks, copies=copies)
 
 
@@ -317,10 +317,11 @@ def resume(
         layout = ChainLayout.from_record(facts.get("layout"), len(state["positions"]),
                                          expected=read_layout(directory / TOPOLOGY_FILE),
                                          chains=facts.get("chains"))
-        sim = Simulation.from_config(cfg, state["positions"], layout=layout,
-                                     engine=_checkpoint_engine(directory, state["engine"]))
+        built = resume_plan(cfg, state["positions"], layout,
+                            _checkpoint_engine(directory, state["engine"]))
+        plan, sim = built.plan, built.simulation
         counters = sim.loadCheckpoint(directory / CHECKPOINT_FILE)
-        resumed = resumed_record(state, facts, cfg, directory / CHECKPOINT_FILE)
+        resumed = resumed_record(state, facts, plan, directory / CHECKPOINT_FILE)
         truncate_dcd(directory / TRAJECTORY_FILE, int(counters["frames"]))
         truncate_csv(directory / OBSERVABLES_FILE, int(counters["rows"]))
         stale = directory / ANALYSIS_FILE
@@ -334,7 +335,7 @@ def resume(
             raise OutputError(describe_os_error(directory, exc)) from None
         raise
     log.info("resuming %s at t = %g tau_d (step %d)", directory, sim.time, sim.currentStep)
-    return _drive(sim, _Course.of(cfg), directory, facts, counters, progress, wall0, lock,
+    return _drive(sim, _Course.of(plan), directory, facts, counters, progress, wall0, lock,
                   resumed.template, wait_for_checks, resumed, copies=copies)
 
 
@@ -402,10 +403,9 @@ class _Course:
     checks: TopologyChecks
 
     @classmethod
-    def of(cls, cfg: RunConfig) -> _Course:
-        """A resumed run's, from its run.toml."""
-        return cls(cfg.to_dict(), Output.of(cfg), float(cfg["run.duration"]),
-                   TopologyChecks.of(cfg))
+    def of(cls, plan: RunPlan) -> _Course:
+        """The course of ``plan``."""
+        return cls(plan.record, plan.output, plan.duration, plan.checks)
 
 
 def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lock,

@@ -162,18 +162,20 @@ class ResumedChecks(NamedTuple):
     template: Any = None
 
 
-def resumed_record(state: dict, facts: dict, cfg, path) -> ResumedChecks:
+def resumed_record(state: dict, facts: dict, plan, path) -> ResumedChecks:
     """What a resumed run's checks continue, from its checkpoint ``state``
     (:func:`knotmm.engine.checkpoint.read_checkpoint`, of file ``path``).
 
     The template's judged facts are put back into run.toml's ``facts`` (a run killed before
     its end wrote them only into its checkpoints); a template whose check was still under
-    way is built again from ``cfg`` and judged in the resumed run. A checkpoint written
-    before knotmm kept the record there gives :func:`record_from_facts`, with a warning.
+    way is built again from the run's plan (``plan``, :func:`knotmm.plan.resume_plan`'s:
+    its configuration, template spec and memory budget) and judged in the resumed run. A
+    checkpoint written before knotmm kept the record there gives :func:`record_from_facts`,
+    with a warning.
     """
     record = state["counters"].get(RECORD_KEY)
     if record is None:
-        if cfg["run.topology_check_interval"] > 0:
+        if plan.checks.interval > 0:
             log.warning("%s holds no record of the knot-type and linking checks (an older "
                         "knotmm's): their record goes on from run.toml's, which misses what "
                         "happened after run.toml was last written (after a kill: all of it)",
@@ -181,21 +183,22 @@ def resumed_record(state: dict, facts: dict, cfg, path) -> ResumedChecks:
         record = record_from_facts(facts)
     entry = record.get("template") or {}
     recorded = entry.get("facts") or None
-    template = _template_again(cfg, entry, facts) if entry.get("pending") else None
+    template = _template_again(plan, entry, facts) if entry.get("pending") else None
     if recorded:
         facts.update(recorded)
     return ResumedChecks(record, (state.get("arrays") or {}).get(POSITIONS_ARRAY), recorded,
                          template)
 
 
-def _template_again(cfg, entry: dict, facts: dict):
+def _template_again(plan, entry: dict, facts: dict):
     """The run's template built again, its knot check sent to the worker; None, with a
     warning and a note in ``facts``, when it cannot be (a template file changed since, ...)."""
     from knotmm.errors import KnotmmError
     from knotmm.shapes.builder import build_template
 
     try:
-        template = build_template(cfg, identify="later")
+        template = build_template(plan.config, identify="later", spec=plan.template,
+                                  resources=plan.resources)
         why = None if _digest(template.positions) == entry.get("sha256") else "another shape"
     except (KnotmmError, OSError) as exc:
         why = str(exc)

@@ -81,6 +81,7 @@ class PluginEngine(Engine):
         super().__init__(integrator)
         self.rpy = from_python_integrator(integrator, threads=threads, n_beads=n_beads)
         self.openmm_integrator = self.rpy
+        self._threads, self._n_beads = threads, n_beads
         self.adaptive = bool(getattr(integrator, "adaptive", False))
         self._rejected = 0
         self.group = None  # a knotmm.engine.copies.CopyGroup that takes the steps, or None
@@ -95,6 +96,33 @@ class PluginEngine(Engine):
     def timestep(self) -> float:
         """The plugin's next step (adaptive methods), else the integrator's fixed step."""
         return self._step_size() if self.adaptive else self.integrator.timestep
+
+    def use_integrator(self, integrator) -> bool:
+        """Step with ``integrator``'s method and settings from now on, on the same Context
+        (``RPYIntegrator.setMethod``: the kernel made again for the method, as in a new
+        Context; before the first step). False, nothing changed, where a setting cannot
+        change in a Context (the noise's seed, kT), for a replica of a copy group, or with a
+        plugin built before ``setMethod``."""
+        from knotmm.plugin import from_python_integrator
+
+        r = self.rpy
+        if self.n_accepted or self.group is not None or not hasattr(r, "setMethod"):
+            return False
+        fresh = from_python_integrator(integrator, threads=self._threads, n_beads=self._n_beads)
+        if (fresh.getRandomNumberSeed(), fresh.getThermalEnergy()) != (
+                r.getRandomNumberSeed(), r.getThermalEnergy()):
+            return False
+        r.setErrorTolerance(fresh.getErrorTolerance())
+        r.setMinimumStepSize(fresh.getMinimumStepSize())
+        r.setMaximumStepSize(fresh.getMaximumStepSize())
+        r.setNoiseMethod(fresh.getNoiseMethod())
+        r.setLanczosTolerance(fresh.getLanczosTolerance())
+        r.setStepSize(fresh.getStepSize())
+        r.setMethod(fresh.getMethod())
+        self.integrator = integrator
+        self.adaptive = bool(getattr(integrator, "adaptive", False))
+        self._rejected = self.n_evaluations = 0
+        return True
 
     def stiffness(self, sim) -> float:
         """The plugin rkc2's spectral-radius estimate at ``sim``'s positions, in 1/tau_d.

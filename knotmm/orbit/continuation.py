@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.sparse.linalg import gmres
@@ -134,10 +134,14 @@ def check_range(cfg, key: str, start: float, stop: float, points: int) -> None:
             )
 
 
-def _model(cfg, key: str, value: float):
-    from knotmm.model.parameters import ChainModel
-
-    return ChainModel.from_config(cfg.replace({key: value}))
+def _model(model, key: str, value: float):
+    """``model`` (a :class:`knotmm.model.parameters.ChainModel`) with ``key`` (a
+    ``model.*`` key of :data:`CONTINUOUS_KEYS`) at ``value``; ``knot.beads`` leaves it as
+    it is (the model does not depend on the chain's size)."""
+    table, name = key.split(".")
+    if table != "model":
+        return model
+    return replace(model, **{name: float(value)})
 
 
 def resample_ring(x: np.ndarray, n_new: int) -> np.ndarray:
@@ -155,7 +159,7 @@ def resample_ring(x: np.ndarray, n_new: int) -> np.ndarray:
     return (out - c) * (n_new / n)
 
 
-def _arclength_newton(make_flow, cfg, key, u1, tangent, ds, scale, tolerance,
+def _arclength_newton(make_flow, model, key, u1, tangent, ds, scale, tolerance,
                       max_iterations=15, gmres_tolerance=1e-4):
     """Solve the orbit condition plus ``<U - U_pred, tau> = 0``; return (Orbit, value) or None."""
     x1, t1, th1, p1 = u1
@@ -166,7 +170,7 @@ def _arclength_newton(make_flow, cfg, key, u1, tangent, ds, scale, tolerance,
     history = []
     step_h = None  # one fixed step for the whole solve: the map must not change under Newton
     for it in range(1, max_iterations + 1):
-        flow = make_flow(_model(cfg, key, value), x, step_h)
+        flow = make_flow(_model(model, key, value), x, step_h)
         step_h = flow.timestep
         r, end = residual(flow, x, period, rotation)
         arc = float((np.concatenate([x.ravel(), [period, rotation, value]]) - pred) * scale
@@ -178,7 +182,7 @@ def _arclength_newton(make_flow, cfg, key, u1, tangent, ds, scale, tolerance,
                           it - 1, history, "converged", flow.n_flows, flow.timestep)
             return orbit, value, flow
         dp = 1e-6 * max(1.0, abs(value))
-        r_p, _ = residual(make_flow(_model(cfg, key, value + dp), x, step_h), x, period,
+        r_p, _ = residual(make_flow(_model(model, key, value + dp), x, step_h), x, period,
                           rotation)
         col_p = ((r_p - r) / dp).ravel()
         op = bordered_operator(flow, x, period, rotation, end, column=col_p,
@@ -196,16 +200,17 @@ def _arclength_newton(make_flow, cfg, key, u1, tangent, ds, scale, tolerance,
     return None
 
 
-def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
+def continue_orbit(orbit, model, key, start, stop, make_flow, points=8, modes=10,
                    tolerance=1e-8, floquet_fn=None, on_point=None, branch=None):
-    """Follow ``orbit`` (converged at ``cfg``) from ``key = start`` to ``stop``.
+    """Follow ``orbit`` (converged for ``model``) from ``key = start`` to ``stop``.
 
     Parameters
     ----------
     orbit : Orbit
         A converged orbit (a guess for the first point, at ``key = start``).
-    cfg : knotmm.config.RunConfig
-        The run's configuration.
+    model : knotmm.model.parameters.ChainModel
+        The run's model (its plan's, :class:`knotmm.plan.PlanParts`); each point's is this
+        one with ``key`` at the point's value.
     key : str
         See :data:`CONTINUOUS_KEYS`, :data:`DISCRETE_KEYS`.
     start, stop : float
@@ -259,7 +264,7 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
     step_p = values[1] - values[0]
     if discrete:
         for value in values[done:]:
-            found = _orbit_at_beads(current, cfg, int(value), make_flow, tolerance)
+            found = _orbit_at_beads(current, model, int(value), make_flow, tolerance)
             if found is None:
                 break
             current, flow = found
@@ -267,7 +272,7 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
         return branch
     for value in (first, first + step_p)[done:]:
         try:
-            flow = make_flow(_model(cfg, key, value), current.positions)
+            flow = make_flow(_model(model, key, value), current.positions)
             current = solve_orbit(flow, current.positions, current.period, current.rotation,
                                   tolerance=tolerance)
         except SimulationFault as exc:
@@ -296,7 +301,7 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
             ds *= (stop - b.value) / dp_pred  # the predictor lands on stop
         try:
             found = _arclength_newton(
-                make_flow, cfg, key,
+                make_flow, model, key,
                 (b.orbit.positions, b.orbit.period, b.orbit.rotation, b.value),
                 tangent, ds, scale, tolerance)
         except SimulationFault as exc:
@@ -310,14 +315,12 @@ def continue_orbit(orbit, cfg, key, start, stop, make_flow, points=8, modes=10,
     return branch
 
 
-def _orbit_at_beads(orbit, cfg, n_new, make_flow, tolerance):
+def _orbit_at_beads(orbit, model, n_new, make_flow, tolerance):
     """(Orbit, FlowMap) at another number of beads, from ``orbit`` resampled; None if lost."""
-    from knotmm.model.parameters import ChainModel
     from knotmm.orbit.start import refine_guess
 
     n = orbit.positions.shape[0]
     x = orbit.positions if n_new == n else resample_ring(orbit.positions, n_new)
-    model = ChainModel.from_config(cfg.replace({"knot.beads": int(n_new)}))
     try:
         flow = make_flow(model, x)
         period, rotation = orbit.period, orbit.rotation

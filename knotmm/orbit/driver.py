@@ -367,7 +367,7 @@ def continuation_of_run(run_dir, spec: str, points: int = 8, modes: int = DEFAUL
                 def flow_for(model, positions, step=timestep):
                     return make_flow(positions, model, step, engine=engine, threads=threads)
 
-                continue_orbit(orbit, start.config, key, a, b, flow_for, points=points,
+                continue_orbit(orbit, start.model, key, a, b, flow_for, points=points,
                                modes=modes, tolerance=tolerance, on_point=add,
                                branch=list(branch))
             save(True)

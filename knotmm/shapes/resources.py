@@ -3,7 +3,9 @@
 :func:`check_memory` refuses, before anything is written, a run whose largest allocation
 cannot fit in the memory available, with one line giving the estimate. Only the dense
 Brownian noise (``run.noise = "cholesky"``, ``docs/model.md``, "Dynamics") grows faster than
-the chain; everything else a run holds grows in proportion to the number of beads.
+the chain; everything else a run holds grows in proportion to the number of beads. Where the
+arrays live depends on the engine and the platform (:meth:`RunResources.need`): the dense
+matrices are always on the host, the plugin's state on a device platform's device.
 """
 
 from __future__ import annotations
@@ -14,7 +16,8 @@ from dataclasses import dataclass
 from knotmm.dynamics.registry import REGISTRY, resolve
 from knotmm.errors import ConfigError
 
-__all__ = ["RunResources", "available_memory", "check_memory"]
+__all__ = ["DENSE_MATRICES", "DEVICE_VECTORS", "MemoryNeed", "RunResources",
+           "available_memory", "check_memory"]
 
 
 def available_memory() -> int | None:
@@ -29,14 +32,51 @@ def available_memory() -> int | None:
     return None
 
 
+#: Dense 3N x 3N float64 matrices a Cholesky-noise run holds on the host, by engine: the
+#: Python engine's RPY matrix and scipy's factor of it (``knotmm.dynamics.noise.
+#: mobility_cholesky``); the plugin's lower triangle, factored in place (its Reference
+#: backend's and, on a device platform, the host copy ``CommonRPYBackend`` factors:
+#: ``RPYMobility::lowerMatrix`` then ``choleskyLower``). An engine not yet known counts
+#: as the larger.
+DENSE_MATRICES = {"python": 2, "plugin": 1}
+#: Vectors of 3N float64 the plugin keeps on a device platform (``CommonRPYBackend``: its
+#: ``forces``, ``noiseAt``, ``lanczosIn``, ``lanczosOut``, ``energyPosition``, 5; the
+#: stepper's, made once for every method: ``StepWork`` 5, ``FixedSteps`` 6, ``RK23`` 5,
+#: ``RKC2`` 11, the adaptive Brownian one 8). The mobility there is a pair loop
+#: (matrix-free): nothing grows faster than N on the device.
+DEVICE_VECTORS = 40
+
+
+@dataclass(frozen=True)
+class MemoryNeed:
+    """The largest allocations of a run, where they live (:meth:`RunResources.need`).
+
+    Attributes
+    ----------
+    host : int
+        Bytes of the host's memory beyond what grows in proportion to N: the dense
+        Brownian noise's matrices (0 without them).
+    device : int
+        Bytes of a device platform's memory the plugin's state takes (0 on the CPU and
+        Reference platforms, and for the Python engine, which keeps its state on the host).
+    what : str
+        What the host's bytes are ("" for none).
+    """
+
+    host: int
+    device: int = 0
+    what: str = ""
+
+
 @dataclass(frozen=True)
 class RunResources:
     """What a run's memory depends on beyond the template, as plain values.
 
     The geometry code receives this, not the run file's ``[run]`` table: the run plan
-    (:func:`knotmm.plan.prepare`) makes it from ``run.integrator``, ``run.peclet`` and
-    ``run.noise`` once (:meth:`of`), and :func:`knotmm.shapes.builder.build_template`
-    checks the chain it builds against it (:func:`check_memory`) before the knot check.
+    (:func:`knotmm.plan.prepare`) makes it from ``run.integrator``, ``run.peclet``,
+    ``run.noise`` and ``run.engine`` once (:meth:`of`), resolves the engine, and
+    :func:`knotmm.shapes.builder.build_template` checks the chain it builds against it
+    (:func:`check_memory`) before the knot check.
 
     Attributes
     ----------
@@ -44,10 +84,14 @@ class RunResources:
         Whether the run draws Brownian noise (a Brownian integrator at a finite Pe).
     noise : {"auto", "cholesky", "lanczos"}
         ``run.noise`` as asked; :meth:`noise_method` resolves it for a chain's size.
+    engine : {"python", "plugin", "auto"}
+        The engine that holds the noise's matrices (:data:`DENSE_MATRICES`); ``"auto"``:
+        not resolved yet (``run.engine`` as asked), counted as the larger.
     """
 
     brownian: bool = False
     noise: str = "auto"
+    engine: str = "auto"
 
     @classmethod
     def of(cls, cfg) -> RunResources:
@@ -55,7 +99,8 @@ class RunResources:
         one of the two places of ``shapes/`` that read ``run.*`` keys."""
         name, _ = resolve(cfg["run.integrator"], cfg["run.peclet"], cfg["run.timestep"])
         brownian = REGISTRY[name].brownian and math.isfinite(float(cfg["run.peclet"]))
-        return cls(brownian=bool(brownian), noise=str(cfg["run.noise"]))
+        return cls(brownian=bool(brownian), noise=str(cfg["run.noise"]),
+                   engine=str(cfg["run.engine"]))
 
     def noise_method(self, n_beads: int) -> str | None:
         """``"cholesky"`` or ``"lanczos"`` for a chain of ``n_beads``; None without noise."""
@@ -65,31 +110,37 @@ class RunResources:
 
         return NoiseGenerator(self.noise).method_for(n_beads)
 
-    def need(self, n_beads: int) -> tuple[int, str]:
-        """The largest allocation a run of ``n_beads`` needs, in bytes, and what it is.
+    def need(self, n_beads: int, device: bool = False) -> MemoryNeed:
+        """The largest allocations a run of ``n_beads`` needs, where they live.
 
-        Only the dense Brownian noise grows faster than the chain: ``run.noise = "cholesky"``
-        builds the 3N x 3N RPY mobility and its Cholesky factor, ``2 (3N)^2`` float64 (both
-        engines: the plugin's LAPACK factor is the same size). The deterministic dynamics,
-        the Lanczos noise, the forces and the files take memory in proportion to N.
+        Only the dense Brownian noise grows faster than the chain: ``run.noise =
+        "cholesky"`` holds :data:`DENSE_MATRICES` 3N x 3N float64 matrices on the host
+        (whatever the platform: a device platform's plugin factors the mobility on the
+        host too). On a ``device`` platform the plugin keeps its state there,
+        :data:`DEVICE_VECTORS` vectors of 3N float64. The deterministic dynamics, the
+        Lanczos noise, the forces and the files take host memory in proportion to N
+        (not counted).
         """
-        if self.noise_method(n_beads) == "cholesky":
-            size = 3 * n_beads
-            what = f"the dense {size} x {size} RPY mobility and its Cholesky factor"
-            return 2 * size * size * 8, what
-        return 0, ""
+        size = 3 * n_beads
+        on_device = DEVICE_VECTORS * size * 8 if device and self.engine == "plugin" else 0
+        if self.noise_method(n_beads) != "cholesky":
+            return MemoryNeed(0, on_device)
+        matrices = DENSE_MATRICES.get(self.engine, max(DENSE_MATRICES.values()))
+        what = (f"the dense {size} x {size} RPY mobility and its Cholesky factor"
+                + (" (factored in place)" if matrices == 1 else ""))
+        return MemoryNeed(matrices * size * size * 8, on_device, what)
 
     def check(self, n_beads: int) -> None:
-        """Refuse, in one line with the estimate, a run whose dense noise cannot fit in
-        memory (:func:`available_memory`)."""
-        need, what = self.need(n_beads)
+        """Refuse, in one line with the estimate, a run whose dense noise cannot fit in the
+        host's memory (:func:`available_memory`)."""
+        need = self.need(n_beads)
         have = available_memory()
-        if need == 0 or have is None or need <= have:
+        if need.host == 0 or have is None or need.host <= have:
             return
         raise ConfigError(
             f"knot.beads={n_beads} with run.noise = {self.noise!r} needs about "
-            f"{need / 1e9:.3g} GB for {what}, more than the {have / 1e9:.3g} GB available; "
-            'use run.noise = "lanczos" (matrix-free) or fewer beads'
+            f"{need.host / 1e9:.3g} GB for {need.what}, more than the {have / 1e9:.3g} GB "
+            'available; use run.noise = "lanczos" (matrix-free) or fewer beads'
         )
 
 

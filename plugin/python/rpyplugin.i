@@ -222,6 +222,7 @@ class RPYIntegrator : public OpenMM::Integrator {
 public:
     RPYIntegrator(double stepSize, const std::string& method = "rk23", double errorTolerance = 1e-4);
     const std::string& getMethod() const;
+    void setMethod(const std::string& name);
     bool isAdaptive() const;
     bool isStochastic() const;
     double getErrorTolerance() const;

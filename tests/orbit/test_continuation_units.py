@@ -75,3 +75,22 @@ def test_discrete_parameter_reports_a_change_without_a_crossing_point():
     (b,) = find_bifurcations(branch, discrete=True)
     assert b.value == 45.0 and "discrete" in b.kind and "Neimark" not in b.kind
     assert "gains stability" in b.notes[0]
+
+
+@pytest.mark.parametrize("key", ["model.bending_stiffness", "model.bond_stiffness",
+                                 "model.gravity", "model.lj_epsilon", "model.lj_sigma",
+                                 "model.bond_length", "knot.beads"])
+def test_a_point_s_model_is_the_run_s_with_the_key_replaced(key):
+    """Each point's model comes from the run plan's (its ``ChainModel`` with the followed
+    field replaced, issue 31): the model of the run file with that key replaced."""
+    from knotmm.config import RunConfig
+    from knotmm.model.parameters import ChainModel
+    from knotmm.orbit.continuation import CONTINUOUS_KEYS, DISCRETE_KEYS, _model
+    from knotmm.plan import PlanParts
+
+    assert key in CONTINUOUS_KEYS + DISCRETE_KEYS
+    cfg = RunConfig.from_dict({"model": {"bending_stiffness": 7.5, "gravity": 0.5,
+                                         "segment_repulsion": True}})
+    value = 48 if key == "knot.beads" else np.float64(0.4375)  # as the Newton solve gives it
+    point = _model(PlanParts.of(cfg).model, key, value)
+    assert point == ChainModel.from_config(cfg.replace({key: value}))

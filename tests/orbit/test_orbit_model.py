@@ -156,7 +156,7 @@ def test_arclength_continuation_lands_on_orbits_of_the_model(orbit40):
     def flow_for(model, positions, step=None):
         return make_flow(positions, model, step)
 
-    branch = continue_orbit(orbit, start.config, "model.bending_stiffness", 5.0, 7.0,
+    branch = continue_orbit(orbit, start.model, "model.bending_stiffness", 5.0, 7.0,
                             flow_for, points=3, modes=0)
     values = [p.value for p in branch]
     assert values == sorted(values) and len(values) in (3, 4)

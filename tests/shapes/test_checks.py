@@ -75,9 +75,42 @@ def test_dense_noise_that_cannot_fit_is_refused_with_the_estimate(monkeypatch):
 
 def test_only_the_dense_noise_counts():
     def need(cfg):
-        return resources.RunResources.of(cfg).need(6000)[0]
+        return resources.RunResources.of(cfg).need(6000).host  # run.engine "auto": the larger
 
     assert need(_brownian(6000, "cholesky")) == 2 * 18000**2 * 8
     assert need(_brownian(6000, "lanczos")) == 0
     assert need(_brownian(6000, "auto")) == 0  # lanczos above 300
     assert need(RunConfig.from_dict({"knot": {"beads": 6000}})) == 0
+
+
+@pytest.mark.parametrize(("engine", "device", "host", "on_device"), [
+    # the Python engine: scipy's factor beside the RPY matrix, both (3N)^2 float64 on the host
+    ("python", False, 2 * 18000**2 * 8, 0),
+    ("python", True, 2 * 18000**2 * 8, 0),  # a device computes its forces; its state: the host
+    # the plugin: one matrix, factored in place; on a device, host too (CommonRPYBackend's mat)
+    ("plugin", False, 18000**2 * 8, 0),
+    # on the device: the backend's 5 vectors (forces, noiseAt, lanczosIn, lanczosOut,
+    # energyPosition) and the stepper's StepWork 5, FixedSteps 6, RK23 5, RKC2 11, adaptive
+    # Brownian 8, each 3N float64
+    ("plugin", True, 18000**2 * 8, (5 + 5 + 6 + 5 + 11 + 8) * 18000 * 8),
+])
+def test_the_memory_need_knows_where_the_arrays_live(engine, device, host, on_device):
+    need = resources.RunResources(brownian=True, noise="cholesky", engine=engine).need(
+        6000, device=device)
+    assert (need.host, need.device) == (host, on_device)
+    lanczos = resources.RunResources(brownian=True, noise="lanczos", engine=engine).need(
+        6000, device=device)
+    assert (lanczos.host, lanczos.device) == (0, on_device)  # matrix-free: nothing dense
+
+
+def test_the_plan_records_its_memory_need_for_its_engine():
+    from knotmm.plan import make_plan
+
+    for engine, matrices in (("python", 2), ("plugin", 1)):
+        cfg = RunConfig.from_dict({"knot": {"beads": 40}, "run": {
+            "peclet": 2.0, "noise": "cholesky", "engine": engine, "duration": 1.0,
+            "platform": "Reference"}})
+        plan = make_plan(cfg)
+        if plan.placement.engine != engine:
+            pytest.skip(f"the {engine} engine is not available here")
+        assert plan.memory.host == matrices * 120**2 * 8 and plan.memory.device == 0

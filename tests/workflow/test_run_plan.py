@@ -60,8 +60,8 @@ def _cfg(bending=5.0, **run):
 @pytest.mark.parametrize(("bending", "integrator", "built"), [(5.0, "rk23", 1), (50.0, "rkc2", 2)])
 def test_a_run_validates_nothing_again_and_builds_each_object_once(
         tmp_path, counts, bending, integrator, built):
-    """One stiffness probe on the first Simulation; it is kept when ``auto`` keeps rk23, and
-    one more (with its one integrator) is built when it takes rkc2."""
+    """One stiffness probe on the Simulation, which is kept whichever integrator ``auto``
+    takes; one more integrator is built when it takes rkc2 (taken in place)."""
     from knotmm.config import load_run_file
     from knotmm.workflow import run
 
@@ -70,7 +70,7 @@ def test_a_run_validates_nothing_again_and_builds_each_object_once(
     run(cfg, tmp_path / "r", progress=False)
     assert counts["from_dict"] == 0  # was 3 (4 with rkc2): every replace validated it all
     assert counts["integrators"] == built  # was 2 (3)
-    assert counts["simulations"] == built
+    assert counts["simulations"] == 1  # was 2 with rkc2 until the integrator switched in place
     assert load_run_file(tmp_path / "r" / "run.toml")["run.integrator"] == integrator
 
 
@@ -135,7 +135,8 @@ def test_the_plan_holds_every_decision():
     assert plan.config["run.tolerance"] == 0.02 and plan.config["knot.major_radius"] > 0
     assert plan.reasons["integrator_choice"].startswith("auto at run.peclet = 2:")
     assert plan.placement.platform == "Reference" and plan.placement.precision == "double"
-    assert plan.resources == RunResources(brownian=True, noise="auto")
+    assert plan.resources == RunResources(brownian=True, noise="auto",
+                                          engine=plan.placement.engine)
     assert plan.n_beads == 40 and plan.model.bending_stiffness == 2.0
     assert plan.template.kind == "torus" and plan.template.seeds == (None,)
     assert plan.template.max_bond_length == 3.0
@@ -211,13 +212,14 @@ def contexts(monkeypatch):
 
 @pytest.mark.parametrize(("engine", "bending", "integrator", "made"), [
     ("python", 5.0, "rk23", 1), ("python", 50.0, "rkc2", 1),  # rkc2 was 2: a second Simulation
-    ("plugin", 5.0, "rk23", 1), ("plugin", 50.0, "rkc2", 2),  # were 2 and 3: a probe Context
+    ("plugin", 5.0, "rk23", 1), ("plugin", 50.0, "rkc2", 1),  # were 2 and 3, then 1 and 2
 ])
 def test_contexts_made_per_run(tmp_path, contexts, engine, bending, integrator, made):
     """``run.integrator = "auto"`` at Pe = inf: the stiffness is probed once on the run's
-    Simulation. The Python engine takes rkc2 in place, on the same Context. The plugin asks
-    its own Context (``RPYIntegrator.estimateSpectralRadius``); its integrator lives in the
-    Context, so taking rkc2 builds the Simulation again."""
+    Simulation, and rkc2 taken on the same Context. The Python engine takes the Python
+    integrator in place; the plugin asks its own Context (``RPYIntegrator.
+    estimateSpectralRadius``) and switches its integrator there (``RPYIntegrator.setMethod``:
+    its kernel made again for rkc2)."""
     import knotmm.plugin
     from knotmm.config import load_run_file
     from knotmm.workflow import run
@@ -232,18 +234,51 @@ def test_contexts_made_per_run(tmp_path, contexts, engine, bending, integrator, 
     assert len(contexts) == 1  # a named integrator: one Context
 
 
-def test_an_integrator_taken_in_place_steps_as_a_new_simulation(tmp_path):
-    """``auto`` taking rkc2 on the Python engine's Simulation in place gives the run a named
-    rkc2 (same step and tolerance) gives, frame for frame."""
+@pytest.mark.parametrize("engine", ["python", "plugin"])
+def test_an_integrator_taken_in_place_steps_as_a_new_simulation(tmp_path, engine):
+    """``auto`` taking rkc2 on the run's Simulation in place gives the run a named rkc2
+    (same step and tolerance) gives, frame for frame."""
+    import knotmm.plugin
     from knotmm.config import load_run_file
     from knotmm.io.dcd import read_dcd
     from knotmm.workflow import run
 
-    run(_cfg(50.0, engine="python"), tmp_path / "auto", progress=False)
+    if engine == "plugin" and not knotmm.plugin.available():
+        pytest.skip(f"plugin not built: {knotmm.plugin.load_error()}")
+    run(_cfg(50.0, engine=engine), tmp_path / "auto", progress=False)
     rec = load_run_file(tmp_path / "auto" / "run.toml")
     assert rec["run.integrator"] == "rkc2"
-    run(_cfg(50.0, engine="python", integrator="rkc2", timestep=rec["run.timestep"],
+    run(_cfg(50.0, engine=engine, integrator="rkc2", timestep=rec["run.timestep"],
              tolerance=rec["run.tolerance"]), tmp_path / "named", progress=False)
     auto, named = (read_dcd(tmp_path / d / "trajectory.dcd")[0] for d in ("auto", "named"))
     assert auto.shape[0] > 1
     np.testing.assert_array_equal(auto, named)
+
+
+@pytest.mark.parametrize("engine", ["python", "plugin"])
+def test_a_resumed_run_starts_from_its_plan(tmp_path, monkeypatch, counts, engine):
+    """``resume`` plans the run again from run.toml (:func:`knotmm.plan.resume_plan`): no
+    integrator read from the run file by the registry, no ``Simulation.from_config``, one
+    integrator and one Simulation; the resumed run's frames are those of a run never
+    stopped."""
+    import knotmm.plugin
+    from knotmm.io.dcd import read_dcd
+    from knotmm.workflow import resume, run
+
+    if engine == "plugin" and not knotmm.plugin.available():
+        pytest.skip(f"plugin not built: {knotmm.plugin.load_error()}")
+    run(_cfg(50.0, engine=engine), tmp_path / "stopped", progress=False)
+    run(_cfg(50.0, engine=engine, duration=1.0), tmp_path / "whole", progress=False)
+
+    def refused(*args, **kwargs):
+        raise AssertionError("a resumed run read its integrator or Simulation off run.toml")
+
+    monkeypatch.setattr(registry, "integrator_from_config", refused)
+    monkeypatch.setattr(simulation.Simulation, "from_config", classmethod(refused))
+    counts.clear()
+    result = resume(tmp_path / "stopped", progress=False, duration=1.0)
+    assert (counts["integrators"], counts["simulations"]) == (1, 1)
+    assert result.time == 1.0
+    stopped, whole = (read_dcd(tmp_path / d / "trajectory.dcd")[0] for d in ("stopped", "whole"))
+    assert stopped.shape[0] == whole.shape[0] == 3  # t = 0, 0.5, 1 tau_d
+    np.testing.assert_array_equal(stopped, whole)

@@ -55,6 +55,21 @@ std::string stochasticNames() {
 }
 } // namespace
 
+void RPYIntegrator::setMethod(const std::string& name) {
+    const RPYMethodInfo& info = rpyMethodInfo(name);  // throws for an unknown name
+    if (thermalEnergy > 0 && !info.stochastic)
+        throw OpenMMException("method='" + name + "': deterministic, but thermalEnergy=" + formatNumber(thermalEnergy) +
+                              " > 0; use one of " + stochasticNames() + ", or set thermalEnergy 0 first");
+    if (context != nullptr && numCopies > 1)
+        throw OpenMMException("method: an integrator of several copies keeps its method once its Context is created");
+    method = name;
+    if (context == nullptr || !kernelReady)
+        return;
+    if (isAdaptive())  // as initialize(): never start above the largest step
+        setStepSize(std::min(getStepSize(), maxStepSize));
+    kernel.getAs<IntegrateRPYStepKernel>().initialize(context->getSystem(), *this);
+}
+
 void RPYIntegrator::setErrorTolerance(double tol) {
     requirePositive(tol, "errorTolerance", " (in nm = d)");
     errorTolerance = tol;

@@ -38,6 +38,17 @@ public:
                            double errorTolerance = 1e-4);
 
     const std::string& getMethod() const { return method; }
+    /**
+     * Step with another method of the table from now on. Before the Context is created it is
+     * the constructor's argument. In a Context the kernel is made again for it: the Context's
+     * positions and time stay, everything else starts as in a new Context with this
+     * integrator (counters at 0, no cached velocity, the noise stream seeded again, an
+     * adaptive step clipped to getMaximumStepSize() as when a Context is created), so the
+     * steps are those of an integrator built with `name` (knotmm's `auto` takes rkc2 so
+     * after its stiffness probe, on the run's own Context). Throws for an unknown name, a
+     * deterministic method while kT > 0, and an integrator of several copies in a Context.
+     */
+    void setMethod(const std::string& name);
     /** The step follows error control (rk23, rkc2, ito_heun_adaptive; RPYMethodInfo::adaptive). */
     bool isAdaptive() const;
     /**
