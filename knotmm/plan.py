@@ -10,24 +10,31 @@ at the first, as ``knotmm run`` reports it; nothing is written):
    template spec (:class:`TemplateSpec`: its keys, the perturbation's seeds, the longest
    bond), the memory budget (:class:`knotmm.shapes.resources.RunResources`), the topology
    checks (:class:`~knotmm.engine.knot_checks.TopologyChecks`), the output
-   (:class:`Output`) and the duration;
+   (:class:`Output`), the duration, the model and where to compute as asked
+   (:class:`Compute`);
 2. the integrator, built once from the stepping, which checks it against ``run.peclet``
-   before the template is built; ``run.on_topology_change = "stop"`` against topoly;
+   before the template is built; ``run.on_topology_change = "stop"`` against topoly; the
+   engine (:meth:`Compute.engine_for`), which the memory budget takes;
 3. the template, built by :func:`knotmm.shapes.builder.build_template` from the spec and
    the budget (the geometry code gets them as values, never ``run.*`` keys); the noise
    method for the chain's size;
-4. the Simulation: engine and platform resolved (:meth:`Simulation.from_config`), the
-   precision asked of OpenMM (:class:`Placement`);
-5. ``run.integrator = "auto"`` at ``Pe = inf``: ONE stiffness probe on that Simulation,
-   which is kept when the choice keeps its integrator; a Python-engine Simulation takes
-   the other integrator in place (:meth:`Simulation.use_integrator`: no second Context),
-   a plugin one is built again with it;
+4. the Simulation (:meth:`PlanParts.simulation`: the platform resolved), the precision asked
+   of OpenMM (:class:`Placement`);
+5. ``run.integrator = "auto"`` at ``Pe = inf``: ONE stiffness probe on that Simulation, which
+   is kept whichever integrator the choice takes (:meth:`Simulation.use_integrator`: the
+   Python engine takes the Python integrator, the plugin switches its ``RPYIntegrator`` with
+   ``setMethod``; one Context either way); an engine that cannot switch is built again;
 6. the record: the configuration with every resolved key (one :meth:`RunConfig.replace`,
    which validates only those keys) as ``run.toml`` and the checkpoints write it
-   (:attr:`RunPlan.record`), and the reasons ``run.toml`` records (``integrator_choice``).
+   (:attr:`RunPlan.record`), the reasons ``run.toml`` records (``integrator_choice``) and
+   the memory need where it lives (:attr:`RunPlan.memory`).
+
+A stopped run is planned again from its ``run.toml`` by :func:`resume_plan` (every choice
+recorded there; the checkpoint's positions, chains and engine; no template, no probe).
 
 :func:`knotmm.workflow.run` (and through it replicas and sweep points) and ``sweep
---dry-run`` (:func:`knotmm.workflow.build_run`) start from it; below it nothing reads the run
+--dry-run`` (:func:`knotmm.workflow.build_run`) start from it, ``--resume``
+(:func:`knotmm.workflow.resume`) from :func:`resume_plan`; below it nothing reads the run
 file again: the run is driven by the plan's parts (``tests/workflow/test_config_walk.py``
 measures it).
 """

@@ -108,8 +108,11 @@ class Engine:
 
     def use_integrator(self, integrator) -> bool:
         """Step with ``integrator`` from now on, before the first step, on the same Context
-        (a run's ``auto`` choice after its stiffness probe). False: this engine cannot (its
-        integrator lives in the Context): the caller builds a new Simulation."""
+        (a run's ``auto`` choice after its stiffness probe). False: this engine cannot, and
+        nothing changed: the caller builds a new Simulation (the Python engine and the
+        plugin engine can: :meth:`PythonEngine.use_integrator
+        <knotmm.engine.python_engine.PythonEngine.use_integrator>`, :meth:`PluginEngine.
+        use_integrator <knotmm.engine.plugin_engine.PluginEngine.use_integrator>`)."""
         return False
 
     def stiffness(self, sim) -> float:

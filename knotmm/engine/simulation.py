@@ -331,8 +331,8 @@ class Simulation:
 
     def use_integrator(self, integrator) -> bool:
         """Step with a fresh ``integrator`` instead, before the first step, keeping the
-        Context (:meth:`knotmm.engine.base.Engine.use_integrator`: the Python engine can;
-        False where the engine cannot, and nothing changed)."""
+        Context (:meth:`knotmm.engine.base.Engine.use_integrator`: both engines can; False
+        where the engine cannot, and nothing changed)."""
         if self.currentStep or not self._engine.use_integrator(integrator):
             return False
         self.integrator = integrator
