@@ -488,3 +488,34 @@ def reference(kT: float, knot: str | None = "3_1", n_beads: int = 60, sweeps: in
     out.update(acceptance=res.acceptance, wall=res.wall, sweeps=sweeps, delta=res.delta,
                knot=knot)
     return out
+
+
+def trimer_exact(kT, p=STUDY):
+    """<cos theta> and <|r_3 - r_1|> of an open trimer by quadrature over (r1, r2, theta)."""
+    avg = trimer_averages(kT, p)
+    return avg["cos"], avg["d13"]
+
+
+def trimer_averages(kT, p=STUDY) -> dict:
+    """An open trimer's equilibrium averages by quadrature over (r1, r2, theta): ``cos``
+    (successive bonds), ``d13`` (|r_3 - r_1|), ``bond_mean`` and ``bond_sd`` (one bond)."""
+    B, l0, A = p["bond_stiffness"], p["bond_length"], p["bending_stiffness"]
+    s, eps = p["lj_sigma"], p["lj_epsilon"]
+    w = 9 * math.sqrt(kT / B)
+    gr, wr = np.polynomial.legendre.leggauss(80)
+    r = l0 + w * gr
+    wr = wr * w
+    gt, wt = np.polynomial.legendre.leggauss(400)
+    th = 0.5 * math.pi * (gt + 1)
+    wt = wt * 0.5 * math.pi
+    r1, r2, t = np.meshgrid(r, r, th, indexing="ij")
+    d13 = np.sqrt(r1**2 + r2**2 + 2 * r1 * r2 * np.cos(t))
+    lj = np.where(d13 < 2 ** (1 / 6) * s, eps * ((s / d13) ** 12 - (s / d13) ** 6), 0.0)
+    e = 0.5 * B * ((r1 - l0) ** 2 + (r2 - l0) ** 2) + 0.5 * A * t**2 + lj
+    weight = (r1**2 * r2**2 * np.sin(t) * np.exp(-(e - e.min()) / kT)
+              * wr[:, None, None] * wr[None, :, None] * wt[None, None, :])
+    z = weight.sum()
+    mean = float((weight * r1).sum() / z)
+    return {"cos": float((weight * np.cos(t)).sum() / z), "d13": float((weight * d13).sum() / z),
+            "bond_mean": mean,
+            "bond_sd": math.sqrt(float((weight * (r1 - mean) ** 2).sum() / z))}

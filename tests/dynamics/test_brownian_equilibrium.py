@@ -180,27 +180,6 @@ def _dimer_exact(kT, B=50.0, l0=0.6):
     return m1, math.sqrt(m2 - m1**2)
 
 
-def _trimer_exact(kT, p=mc.STUDY):
-    """<cos theta> and <|r_3 - r_1|> of an open trimer by quadrature over (r1, r2, theta)."""
-    B, l0, A = p["bond_stiffness"], p["bond_length"], p["bending_stiffness"]
-    s, eps = p["lj_sigma"], p["lj_epsilon"]
-    w = 9 * math.sqrt(kT / B)
-    gr, wr = np.polynomial.legendre.leggauss(80)
-    r = l0 + w * gr
-    wr = wr * w
-    gt, wt = np.polynomial.legendre.leggauss(400)
-    th = 0.5 * math.pi * (gt + 1)
-    wt = wt * 0.5 * math.pi
-    r1, r2, t = np.meshgrid(r, r, th, indexing="ij")
-    d13 = np.sqrt(r1**2 + r2**2 + 2 * r1 * r2 * np.cos(t))
-    lj = np.where(d13 < 2 ** (1 / 6) * s, eps * ((s / d13) ** 12 - (s / d13) ** 6), 0.0)
-    e = 0.5 * B * ((r1 - l0) ** 2 + (r2 - l0) ** 2) + 0.5 * A * t**2 + lj
-    weight = (r1**2 * r2**2 * np.sin(t) * np.exp(-(e - e.min()) / kT)
-              * wr[:, None, None] * wr[None, :, None] * wt[None, None, :])
-    z = weight.sum()
-    return float((weight * np.cos(t)).sum() / z), float((weight * d13).sum() / z)
-
-
 def test_mc_dimer_radial_distribution():
     """A free harmonic bond: <l> and sd from r^2 exp(-B (l - l0)^2 / 2kT)."""
     for kT in (2.0, 0.5):
@@ -221,7 +200,7 @@ def test_mc_trimer_bending_and_steric():
     for kT in (2.0, 0.5):
         res = mc.metropolis(x0, kT, sweeps=300_000, burn_in=2000, stride=2, seed=7,
                             closed=False)
-        cos_exact, d13_exact = _trimer_exact(kT)
+        cos_exact, d13_exact = mc.trimer_exact(kT)
         for col, exact in ((2, cos_exact), (3, d13_exact)):
             se, _, _ = mc.blocking_error(res.series[:, col])
             got = res.series[:, col].mean()
