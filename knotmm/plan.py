@@ -451,7 +451,8 @@ def resume_plan(cfg: RunConfig, positions, layout, engine: str) -> PreparedRun:
     and step used, the template's keys): the parts are read again, no template is built and
     no stiffness probed. The Simulation is built at the checkpoint's ``positions`` (shape
     (n_beads, 3), in d) with the chains of ``layout`` and the ``engine`` that wrote the
-    checkpoint (a run goes on exactly only with it); the caller loads the checkpoint into it.
+    checkpoint (a run goes on exactly only with it), after its dense noise is checked against
+    the memory available as a new run's is; the caller loads the checkpoint into it.
 
     Parameters
     ----------
