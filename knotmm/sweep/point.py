@@ -125,6 +125,8 @@ def _simulate(task: Mapping[str, Any], copies=None) -> tuple[str, str | None] | 
     name = task["name"]
     directory = Path(task["directory"])
     action = task.get("action", "run")
+    if action == "skip":  # a finished replica beside its point's others: it stays put
+        return "finished", None
     try:
         if action == "resume":
             from knotmm.errors import RunDirectoryError, TrajectoryFileError
@@ -185,7 +187,8 @@ def run_group(task: Mapping[str, Any]) -> dict[str, Any]:
     Parameters
     ----------
     task : dict
-        ``name`` (the group's), ``members``: the points' own tasks (:func:`run_point`).
+        ``name`` (the group's), ``members``: the points' own tasks (:func:`run_point`); a
+        member ``"skip"`` (finished) is a copy that stays put and gets no result.
 
     Returns
     -------
@@ -210,10 +213,11 @@ def run_group(task: Mapping[str, Any]) -> dict[str, Any]:
                 request_stop()  # the other replicas stop at their next step too
 
         failures = run_together(len(members), body)
+        shown = [k for k, m in enumerate(members) if m.get("action") != "skip"]
         if failures or any(o is None for o in outcomes):
-            results = [_interrupted_quietly(m["name"]) for m in members]
+            results = [_interrupted_quietly(members[k]["name"]) for k in shown]
         else:
-            results = [_analyse(m, *o) for m, o in zip(members, outcomes, strict=True)]
+            results = [_analyse(members[k], *outcomes[k]) for k in shown]
     finally:
         knotmm_log.setLevel(level)
         WorkerState.running = False

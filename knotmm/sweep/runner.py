@@ -311,6 +311,7 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
     rows: list[dict[str, Any]] = []
     tasks: list[dict[str, Any]] = []
     same_point: dict[str, tuple] = {}  # name -> the point without its seed
+    idle: list[dict[str, Any]] = []  # finished replicas of such points
     counts = {"run": 0, "resume": 0, "analyze": 0, "skip": 0}
     for point in sweep.points:
         point_dir = directory / point.name
@@ -324,6 +325,9 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
         counts[action] += 1
         if action == "skip":
             row.update(status="finished", error=None, **values)
+            if sweep.options.seeds:  # a copy that stays put where its point's others step
+                idle.append({"name": point.name, "directory": str(point_dir),
+                             "action": "skip"})
         else:
             row.update(status="pending", error=None, **summary_values(None))
             cfg = point.config.replace({"output.directory": str(point_dir)})
@@ -342,8 +346,9 @@ def _run_sweep(sweep, directory, workers, client, progress, reanalyze, func, wal
     if client is None and workers != 0:
         n = workers if workers is not None else default_workers(sweep.base["run.threads"])
     if same_point and func is run_point:  # a point's replicas as one replicated run
-        tasks = group_tasks(tasks, same_point, n)
-    groups = {t["name"]: [m["name"] for m in t["members"]] for t in tasks if "members" in t}
+        tasks = group_tasks(tasks, same_point, n, idle)
+    groups = {t["name"]: [m["name"] for m in t["members"] if m["action"] != "skip"]
+              for t in tasks if "members" in t}
     summary_path = directory / SUMMARY_FILE
     with writing(summary_path):
         write_text_atomic(summary_path, summary_text(sweep.columns, rows))

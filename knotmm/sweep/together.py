@@ -47,7 +47,8 @@ def stepping_refusal(cfg: RunConfig, count: int) -> str | None:
 
 
 def group_tasks(tasks: Sequence[Mapping[str, Any]], keys: Mapping[str, tuple],
-                workers: int | None) -> list[dict[str, Any]]:
+                workers: int | None, idle: Sequence[Mapping[str, Any]] = ()
+                ) -> list[dict[str, Any]]:
     """The tasks, the replicas of each point that can be stepped together as group tasks.
 
     Parameters
@@ -60,23 +61,32 @@ def group_tasks(tasks: Sequence[Mapping[str, Any]], keys: Mapping[str, tuple],
     workers : int or None
         Local worker processes the tasks are shared out to (None: a Dask cluster or this
         process: a point's replicas stay one group).
+    idle : sequence of dict
+        The finished replicas (``action = "skip"``): where a point's other replicas are run
+        or resumed together, they are copies that stay put, so that a replica resumes as
+        the copy it was (bit for bit) however few of its point's replicas are left to run.
 
     Returns
     -------
     list of dict
-        Single tasks as they were, and group tasks ``{"name", "members"}``.
+        Single tasks as they were, and group tasks ``{"name", "members"}`` (the members in
+        replica order; a member ``"skip"`` is run and reported by nobody).
     """
-    runs = [t for t in tasks if t.get("action") in ("run", "resume")]
-    by_point: dict[tuple, list] = {}
-    for task in runs:
-        by_point.setdefault(keys[task["name"]], []).append(task)
+    order = {name: i for i, name in enumerate(keys)}
+    everyone: dict[tuple, list] = {}
+    for task in [*tasks, *idle]:
+        everyone.setdefault(keys[task["name"]], []).append(task)
+    # in the sweep's order of points
+    pending = dict.fromkeys(keys[t["name"]] for t in tasks if t.get("action") in ("run", "resume"))
     together = {}
-    for key, members in by_point.items():
-        why = stepping_refusal(RunConfig.from_dict(members[0]["config"]), len(members))
+    for key in pending:
+        members = sorted(everyone[key], key=lambda t: order[t["name"]])
+        first = next(t for t in members if t.get("action") in ("run", "resume"))
+        why = stepping_refusal(RunConfig.from_dict(first["config"]), len(members))
         if why is None:
             together[key] = members
         else:
-            log.info("the replicas of %s run one by one: %s", members[0]["name"], why)
+            log.info("the replicas of %s run one by one: %s", first["name"], why)
     if not together:
         return list(tasks)
     parts = 1
@@ -84,14 +94,16 @@ def group_tasks(tasks: Sequence[Mapping[str, Any]], keys: Mapping[str, tuple],
         parts = max(1, math.ceil(workers / len(together)))
     grouped, placed = [], set()
     for members in together.values():
-        split = max(1, min(parts, len(members) // 2))
+        fresh = all(t.get("action") == "run" for t in members)
+        split = max(1, min(parts, len(members) // 2)) if fresh else 1
         for g in range(split):
             part = members[len(members) * g // split: len(members) * (g + 1) // split]
             grouped.append({"name": "group:" + part[0]["name"], "members": part})
             placed.update(t["name"] for t in part)
-    log.info("%d replicas of %d points stepped together, in %d groups",
-             len(placed), len(together), len(grouped))
-    return grouped + [t for t in tasks if t["name"] not in placed]
+    log.info("the replicas of %d points stepped together, in %d groups", len(together),
+             len(grouped))
+    out = grouped + [t for t in tasks if t["name"] not in placed]
+    return sorted(out, key=lambda t: order.get(t.get("members", [t])[0]["name"], -1))
 
 
 def point_results(result: Mapping[str, Any], members: Mapping[str, list[str]]) -> list[dict]:

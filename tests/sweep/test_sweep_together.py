@@ -124,3 +124,72 @@ def test_a_lost_group_gives_every_replica_its_error():
     assert point_results(one, {"group:a": ["a", "b"]}) == [one]
     both = {"name": "group:a", "status": "finished", "group": [one, one]}
     assert point_results(both, {}) == [one, one]
+
+
+def test_a_point_resumed_keeps_its_finished_replicas_as_copies(monkeypatch):
+    """One replica left to resume is still a copy among its point's others (they stay put),
+    as when the point was first run: it resumes bit for bit."""
+    monkeypatch.setattr(together_module.RunConfig, "from_dict", staticmethod(lambda d: d))
+    asked = []
+    monkeypatch.setattr(together_module, "stepping_refusal",
+                        lambda cfg, count: asked.append(count))
+    tasks, keys = _tasks(2, 3)
+    resume = [dict(tasks[1], action="resume")]  # point 0: replica 1 to resume
+    idle = [{"name": t["name"], "action": "skip"} for t in (tasks[0], tasks[2])]
+    grouped = group_tasks(resume + tasks[3:], keys, 4, idle)
+    groups = [t for t in grouped if "members" in t]
+    assert [[m["name"] for m in g["members"]] for g in groups if "p=0" in g["name"]] == [
+        ["p=0,replica=0", "p=0,replica=1", "p=0,replica=2"]]  # one group, replica order
+    assert sorted(asked) == [3, 3]  # the policy asked for the point's three replicas
+    fresh = [g for g in groups if "p=1" in g["name"]]  # a fresh point still shares workers
+    assert sum(len(g["members"]) for g in fresh) == 3 and len(fresh) == 1  # 3 // 2 = 1 part
+    names = [m["name"] for t in grouped for m in t.get("members", [t])]
+    assert sorted(names) == sorted(t["name"] for t in tasks)
+
+
+def test_a_stopped_sweep_resumes_to_the_uninterrupted_one_bit_for_bit(tmp_path):
+    import shutil
+    import threading
+    import time
+
+    from knotmm.engine.interrupt import request_stop, take_stop_request
+
+    data = sweep_file(tmp_path / "whole", seeds=2)
+    data["run"]["duration"] = 8.0
+    whole = run_sweep(Sweep.from_dict(data), workers=0, progress=False)
+    assert [r["status"] for r in whole.rows] == ["finished"] * 4, whole.report()
+
+    data["output"]["directory"] = str(tmp_path / "stopped")
+    sweep = Sweep.from_dict(data)
+    first = tmp_path / "stopped" / "model.bending_stiffness=3.0,replica=1" / "observables.csv"
+
+    def stop_midway():  # once the first point's replicas have written a few frames
+        end = time.monotonic() + 60
+        while time.monotonic() < end:
+            if first.exists() and first.read_text().count("\n") > 6:
+                request_stop()
+                return
+            time.sleep(0.005)
+
+    stopper = threading.Thread(target=stop_midway, daemon=True)
+    stopper.start()
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(sweep, workers=0, progress=False)
+    stopper.join()
+    take_stop_request()
+    statuses = [read_toml(tmp_path / "stopped" / r["directory"] / "run.toml")["knotmm"]["status"]
+                for r in whole.rows[:2]]
+    assert statuses == ["interrupted", "interrupted"]
+    # replica 0 of that point finished meanwhile (as the uninterrupted sweep's): replica 1
+    # resumes as a copy beside it, which stays put
+    done = whole.rows[0]["directory"]
+    shutil.rmtree(tmp_path / "stopped" / done)
+    shutil.copytree(tmp_path / "whole" / done, tmp_path / "stopped" / done)
+    again = run_sweep(sweep, workers=0, progress=False)
+    assert [r["status"] for r in again.rows] == ["finished"] * 4, again.report()
+    assert (again.resumed, again.skipped) == (1, 1)
+    assert _stepping(tmp_path / "stopped" / whole.rows[1]["directory"]).startswith("together")
+    for row in whole.rows:
+        here = _frames(tmp_path / "stopped" / row["directory"])
+        there = _frames(tmp_path / "whole" / row["directory"])
+        np.testing.assert_array_equal(here, there)
