@@ -119,7 +119,7 @@ def run_together(count: int, body, max_together: int | None = None) -> dict[int,
     limit = int(max_together or MAX_TOGETHER)
     failures: dict[int, BaseException] = {}
 
-    def one(k, group, copy):
+    def one(k, group, copy, ended):
         try:
             body(k, (group, copy))
         except BaseException as exc:  # noqa: BLE001 - handed back to the caller's thread
@@ -128,6 +128,7 @@ def run_together(count: int, body, max_together: int | None = None) -> dict[int,
                 request_stop()  # the others stop at their next step too
         finally:
             group.leave(copy)
+            ended.release()
 
     # BLAS on one thread for the whole set: each run limits it while it steps and puts the
     # former limit back when it ends, which, with runs ending at their own times, would let
@@ -138,31 +139,39 @@ def run_together(count: int, body, max_together: int | None = None) -> dict[int,
             first = count * g // groups
             members = range(first, count * (g + 1) // groups)
             group = CopyGroup(len(members))
-            threads = [threading.Thread(target=one, args=(k, group, k - first), daemon=True,
-                                        name=f"knotmm-copy-{k}") for k in members]
+            ended = threading.Semaphore(0)
+            threads = [threading.Thread(target=one, args=(k, group, k - first, ended),
+                                        daemon=True, name=f"knotmm-copy-{k}") for k in members]
             for t in threads:
                 t.start()
-            _join(threads, failures)
+            _wait(threads, ended, failures)
             take_stop_request()  # asked for by a run for the others; all have stopped
             if failures:
                 break
     return failures
 
 
-def _join(threads, failures: dict) -> None:
-    """Wait for the threads, the main thread free to take signals: a first interruption
-    raised here asks every run to stop at its next whole step (they then write their
-    checkpoints) and is waited out; a second one is raised at once."""
+def _wait(threads, ended: threading.Semaphore, failures: dict) -> None:
+    """Wait for the threads (each releases ``ended`` once), the main thread free to take
+    signals: a first interruption raised here asks every run to stop at its next whole step
+    (they then write their checkpoints) and is waited out; a second one is raised at once.
+
+    Never ``Thread.join`` with a timeout here: an exception raised by a signal handler inside
+    it can leave a running thread marked as ended (CPython 3.11's ``_wait_for_tstate_lock``
+    releases the thread's own lock), and the runs would be cut off mid-step."""
     interrupted = None
-    for t in threads:
-        while t.is_alive():
-            try:
-                t.join(0.2)
-            except KeyboardInterrupt as exc:
-                if interrupted is not None:
-                    raise
-                interrupted = exc
-                request_stop()
+    left = len(threads)
+    while left:
+        try:
+            if ended.acquire(timeout=0.2):
+                left -= 1
+        except KeyboardInterrupt as exc:
+            if interrupted is not None:
+                raise
+            interrupted = exc
+            request_stop()
+    for t in threads:  # each has ended its work; only its exit is left
+        t.join()
     if interrupted is not None:
         failures.setdefault(-1, interrupted)
 
