@@ -263,11 +263,15 @@ def _series_title(result: AnalysisResult) -> str:
     if _steady(result) and collapse is not None:
         return (f"analysis window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded): not steady "
                 f"throughout, the torus collapses at $t$ = {collapse:g}")
+    end = win.end_reason
+    if end == "collapse" and not _torus(result):  # no torus: the radius signal left
+        end = "departure: radius"
     if _steady(result):
-        end = win.end_reason
-        if end == "collapse" and not _torus(result):  # no torus: the radius signal left
-            end = "departure: radius"
         return f"steady window {win.t0:g}-{win.t1:g} $\\tau_d$ (shaded); end: {end}"
+    t = result.data.times
+    if win.t0 > t[0] or win.t1 < t[-1]:  # cut short (a collapse of the radius signal)
+        return (f"no steady window found: the analysis uses {win.t0:g}-{win.t1:g} $\\tau_d$ "
+                f"(end: {end})")
     return "no steady window found: the whole run is analysed"
 
 

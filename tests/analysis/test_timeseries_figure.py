@@ -187,3 +187,23 @@ def test_no_texts_overlap_legends_beside_readable_sizes(which, ring, tmp_path):
 def test_wrong_number_of_axes_is_refused(ring):
     with pytest.raises(ValueError, match="4 panels"):
         plot_time_series(ring, axes=Figure().subplots(3, 1))
+
+
+@pytest.mark.parametrize("which", ["ring", "open filament"])
+def test_title_says_which_frames_an_unsteady_analysis_uses(which, ring, tmp_path,
+                                                           monkeypatch):
+    """No steady window, but the window cut short (a radius "collapse" ends it: for an open
+    chain that is the radius signal leaving its band, no torus): the title said "the whole
+    run is analysed" while the fitted fall covered half of it."""
+    result = ring if which == "ring" else _analysed(*SYSTEMS[which], tmp_path / "run")
+    win = result.window
+    monkeypatch.setattr(result, "notes", [*result.notes, "no frame is steady by the criterion"])
+    half = float(result.data.times[len(result.data.times) // 2])
+    monkeypatch.setattr(win, "t1", half)
+    monkeypatch.setattr(win, "end_reason", "collapse")
+    panels = time_series_panels(result)
+    axes = plot_time_series(result, axes=Figure().subplots(len(panels), 1, sharex=True))
+    title = axes[0].get_title()
+    assert title.startswith("no steady window found") and f"-{half:g} " in title, title
+    assert ("collapse" in title) == (which == "ring"), title
+    assert "whole run" not in title
