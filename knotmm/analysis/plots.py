@@ -16,7 +16,7 @@ from knotmm.analysis.fit import scaled_coordinates
 from knotmm.analysis.result import AnalysisResult
 from knotmm.analysis.series_plots import (
     RING_PANELS,
-    chain_colors,
+    plot_chain_heights,
     plot_series_panel,
     time_series_panels,
 )
@@ -220,7 +220,7 @@ def plot_time_series(result: AnalysisResult, axes=None):
                          f"({', '.join(panels)}); {len(axes)} axes were given")
     plot_com_height(result, ax=axes[0])
     if panels != RING_PANELS:
-        _chain_heights(result, axes[0])
+        plot_chain_heights(result, axes[0])
     for ax, which in zip(axes[1:], panels[1:], strict=True):
         if which in ("rho", "alpha", "z"):
             plot_bead_coordinate(result, which, ax=ax)
@@ -242,18 +242,6 @@ def plot_time_series(result: AnalysisResult, axes=None):
 def _series_size(panels) -> tuple[float, float]:
     """Figure size (inches) of the time series: 8 wide, about 2 per panel."""
     return 8.0, 1.0 + 2.0 * len(panels)
-
-
-def _chain_heights(result: AnalysisResult, ax) -> None:
-    """Each chain's centre-of-mass height in its colour (several chains)."""
-    layout = run_layout(result.data)
-    if layout is None or layout.n_chains < 2:
-        return
-    z = np.asarray(result.data.positions)[..., 2]
-    for cid, sl, closed, color in zip(layout.ids, layout.slices(), layout.closed,
-                                      chain_colors(layout.n_chains), strict=True):
-        ax.plot(result.data.times, z[:, sl].mean(axis=1), color=color, lw=1.0,
-                label=f"{cid} ({'ring' if closed else 'open'})")
 
 
 def _series_title(result: AnalysisResult) -> str:

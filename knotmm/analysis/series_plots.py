@@ -30,7 +30,8 @@ import numpy as np
 from knotmm.analysis.drawing import run_layout
 from knotmm.analysis.shape import gyration_measures
 
-__all__ = ["RING_PANELS", "time_series_panels", "plot_series_panel", "chain_colors"]
+__all__ = ["RING_PANELS", "time_series_panels", "plot_series_panel", "plot_chain_heights",
+           "chain_colors"]
 
 #: The panels of a ring (or a link's rings as one object): the beads' cylindrical coordinates.
 RING_PANELS = ("height", "rho", "alpha", "z")
@@ -69,6 +70,18 @@ def _chains(result):
     """``(id, slice, closed)`` of every chain of the run."""
     layout = run_layout(result.data)
     return list(zip(layout.ids, layout.slices(), layout.closed, strict=True))
+
+
+def plot_chain_heights(result, ax) -> None:
+    """Each chain's centre-of-mass height in its colour (several chains)."""
+    layout = run_layout(result.data)
+    if layout is None or layout.n_chains < 2:
+        return
+    z = np.asarray(result.data.positions)[..., 2]
+    for cid, sl, closed, color in zip(layout.ids, layout.slices(), layout.closed,
+                                      chain_colors(layout.n_chains), strict=True):
+        ax.plot(result.data.times, z[:, sl].mean(axis=1), color=color, lw=1.0,
+                label=f"{cid} ({'ring' if closed else 'open'})")
 
 
 def _end_to_end(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
