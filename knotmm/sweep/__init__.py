@@ -1,17 +1,17 @@
 """Parameter sweeps and ensembles: many runs, each analysed, collected in one table.
 
-============================  ================================================================
-:mod:`~knotmm.sweep.spec`     the sweep file: schema, validation, :class:`Sweep`
-:mod:`~knotmm.sweep.plan`     points, replica seeds, what to skip, analyse, resume or run
-:mod:`~knotmm.sweep.check`    the checks ``knotmm run`` makes, on every point (``--dry-run``)
-:mod:`~knotmm.sweep.point`    one point: run it, analyse it, its summary values
-:mod:`~knotmm.sweep.together` a point's ``seeds = K`` replicas as one replicated run
-:mod:`~knotmm.sweep.local`    executor: local worker processes, with crash recovery
-:mod:`~knotmm.sweep.dask`     executor: an existing Dask distributed cluster
-:mod:`~knotmm.sweep.runner`   :func:`run_sweep`: plan, execute, write the summary and plots
-:mod:`~knotmm.sweep.summary`  ``summary.csv``: columns, rows, reading it back
-:mod:`~knotmm.sweep.plots`    plots of the summary against a swept key
-============================  ================================================================
+=============================  ================================================================
+:mod:`~knotmm.sweep.spec`      the sweep file: schema, validation, :class:`Sweep`
+:mod:`~knotmm.sweep.plan`      points, replica seeds, what to skip, analyse, resume or run
+:mod:`~knotmm.sweep.check`     the checks ``knotmm run`` makes, on every point (``--dry-run``)
+:mod:`~knotmm.sweep.point`     one point: run it, analyse it, its summary values
+:mod:`~knotmm.sweep.together`  a point's ``seeds = K`` replicas as one replicated run
+:mod:`~knotmm.sweep.local`     executor: local worker processes, with crash recovery
+:mod:`~knotmm.sweep.dask`      executor: an existing Dask distributed cluster
+:mod:`~knotmm.sweep.runner`    :func:`run_sweep`: plan, execute, write the summary and plots
+:mod:`~knotmm.sweep.summary`   ``summary.csv``: columns, rows, reading it back
+:mod:`~knotmm.sweep.plots`     plots of the summary against a swept key
+=============================  ================================================================
 
 See ``docs/architecture.md``.
 """
