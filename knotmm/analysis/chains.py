@@ -288,7 +288,7 @@ def analyze_system(data: RunData, chains: list[tuple[slice, bool]], analyze_one:
         start, end, changes = linking_series(data.times, data.positions, rings)
         record.update(linking_numbers=start, linking_numbers_end=end,
                       linking_number_changes=changes)
-    links = linkage(data, chains, start)
+    links = linkage(data, chains, start, identify=knot_samples > 0)
     if links.pairs:
         record["linked"] = links.pairs
     link = one_link(chains, links)
@@ -356,7 +356,7 @@ def _link_objects(data, chains, links, analyze_one, t_from, t_to, fit) -> list[d
         slices = [chains[k][0] for k in group]
         if any(a.stop != b.start for a, b in zip(slices[:-1], slices[1:], strict=False)):
             continue  # the rings of a link found by its linking numbers, apart in bead order
-        facts = {"link": name} if name else {}
+        facts = {"link": name or "linked rings"}  # found linked here: one link alone too
         alone = _subset(data, group, slices, {"kind": "link", "closed": True}, facts)
         result = analyze_system(alone, chains_of(alone), analyze_one, t_from=t_from,
                                 t_to=t_to, knot_samples=0, fit=fit)

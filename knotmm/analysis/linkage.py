@@ -11,11 +11,14 @@ chains that are not part of it. Whether two rings are linked is decided at the s
   linking integral cannot be undone without a strand passing through another);
 * **not linked**: their linking number is 0 and a plane separates them (their convex hulls
   are disjoint: a linear program, :func:`separated_by_plane`), so they can be moved apart;
-* **not determined**: linking number 0 and no separating plane. A linking number of 0 does
-  not prove two rings unlinked (the Whitehead link has 0), and knotmm has no link invariant
-  that would settle it (its HOMFLY-PT identification, :mod:`knotmm.knots.identify`, takes one
-  closed chain), so the pair is reported as not determined, with this reason, and its rings
-  are analysed as separate chains.
+* otherwise (linking number 0, no separating plane: a linking number of 0 does not prove two
+  rings unlinked, the Whitehead link has 0), where knot identification is on and topoly is
+  installed, the pair's HOMFLY-PT polynomial (:func:`knotmm.knots.identify.identify_link`):
+  **linked** when it is a link's that is not split (``L5a1``: the Whitehead link), since
+  rings a sphere separates have a split link's polynomial;
+* **not determined** in every other case (no identification, or the polynomial of a split
+  link, ``0_1U0_1``, which some non-split links share): reported with the reason, and the
+  pair's rings are analysed as separate chains.
 
 Linked pairs join their rings into groups (connected components); a group of two or more
 rings is a link object. Units: d.
@@ -40,7 +43,7 @@ NOT_DETERMINED = "not determined"
 #: The reason of a pair whose linking is not determined.
 UNDETERMINED_REASON = (
     "linking number 0 and no plane separates them: a linking number of 0 does not prove two "
-    "rings unlinked (the Whitehead link has 0) and knotmm has no link invariant to settle it")
+    "rings unlinked (the Whitehead link has 0)")
 
 
 def separated_by_plane(a: np.ndarray, b: np.ndarray) -> bool:
@@ -138,8 +141,25 @@ def _recorded_groups(data, chains) -> list[tuple[list[int], str, int | None]]:
     return out
 
 
-def linkage(data, chains: Sequence[tuple[slice, bool]], linking: Mapping[str, int | None]
-            ) -> Linkage:
+def _by_polynomial(a: np.ndarray, b: np.ndarray) -> tuple[str, str]:
+    """Status and reason of a pair with linking number 0 and no separating plane, from
+    topoly's HOMFLY-PT identification of the two rings as a link (module docstring)."""
+    from knotmm.knots.identify import UNKNOWN, identify_link
+
+    name = identify_link([a, b])
+    if name is None:
+        return NOT_DETERMINED, UNDETERMINED_REASON + "; the link was not identified (no topoly)"
+    if name == UNKNOWN:
+        return NOT_DETERMINED, UNDETERMINED_REASON + "; topoly could not name the link"
+    if "U" in name:
+        return NOT_DETERMINED, (UNDETERMINED_REASON + f"; their HOMFLY-PT polynomial is a split "
+                                f"link's ({name}), which does not prove them apart either")
+    return LINKED, (f"linking number 0, but their HOMFLY-PT polynomial is the link {name}'s "
+                    "(topoly), not a split link's")
+
+
+def linkage(data, chains: Sequence[tuple[slice, bool]], linking: Mapping[str, int | None],
+            identify: bool = False) -> Linkage:
     """Decide which rings are linked (module docstring).
 
     Parameters
@@ -150,6 +170,8 @@ def linkage(data, chains: Sequence[tuple[slice, bool]], linking: Mapping[str, in
         Bead ranges, closed or not.
     linking : mapping
         ``{"A-B": Lk}`` at the start (None for a pair that touches).
+    identify : bool
+        Ask topoly (in the knot worker) about the pairs nothing else settles.
     """
     ids = chain_ids(len(chains))
     index = {cid: k for k, cid in enumerate(ids)}
@@ -174,16 +196,19 @@ def linkage(data, chains: Sequence[tuple[slice, bool]], linking: Mapping[str, in
             key = f"{ids[i]}-{ids[j]}"
             lk = linking.get(key)
             if in_record.get(i) is not None and in_record.get(i) == in_record.get(j):
-                status, reason = LINKED, f"built as one link ({recorded[in_record[i]][1]})"
+                status, reason = LINKED, f"built as one link: {recorded[in_record[i]][1]}"
             elif lk:
                 status, reason = LINKED, f"linking number {lk}"
             elif separated_by_plane(x0[chains[i][0]], x0[chains[j][0]]):
                 status, reason = NOT_LINKED, (
-                    "a plane separates them" + (" (linking number 0)" if lk == 0 else ""))
+                    ("linking number 0; " if lk == 0 else "") + "a plane separates them")
             elif lk is None:
                 status, reason = NOT_DETERMINED, "they touch: no linking number"
+            elif identify:
+                status, reason = _by_polynomial(x0[chains[i][0]], x0[chains[j][0]])
             else:
-                status, reason = NOT_DETERMINED, UNDETERMINED_REASON
+                status, reason = NOT_DETERMINED, (
+                    UNDETERMINED_REASON + "; knot identification off (--knot-samples 0)")
             pairs[key] = {"status": status, "reason": reason}
             if status == LINKED:
                 parent[root(index[ids[i]])] = root(index[ids[j]])

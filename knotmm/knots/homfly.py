@@ -133,13 +133,16 @@ def preload() -> bool:
 
 
 def identify_here(
-    positions, chiral: bool = False, max_cross: int = 60, minimal: bool = True
+    positions, chiral: bool = False, max_cross: int = 60, minimal: bool = True,
+    components: list[int] | None = None,
 ) -> str:
     """Knot type of one closed chain, computed in this process by topoly.
 
     Only for the worker process (:mod:`knotmm.knots.worker`); callers use
     :func:`knotmm.knots.identify.identify_knot`, whose parameters and return values these
-    are (``positions``: float64, shape (n_beads, 3), already checked).
+    are (``positions``: float64, shape (n_beads, 3), already checked). With ``components``
+    (bead counts, in order) the positions are that many closed chains, and the name is
+    topoly's for the link (:func:`knotmm.knots.identify.identify_link`), as topoly gives it.
     """
     x = np.asarray(positions, dtype=np.float64)
     import topoly  # noqa: PLC0415 - optional extra, imported lazily
@@ -149,6 +152,10 @@ def identify_here(
     # projection along their symmetry axis can give coincident crossings, on which topoly
     # 1.2.1 crashes (segmentation fault). A fixed generic rotation avoids such projections.
     coords = ((x - x.mean(axis=0)) @ _GENERIC_ROTATION.T).tolist()
+    if components:  # one arc per closed chain, each bead numbered (topoly's arcs)
+        starts = np.cumsum([0, *components[:-1]])
+        coords = [[[int(s + i + 1), *coords[s + i]] for i in range(n)]
+                  for s, n in zip(starts, components, strict=True)]
     with _topoly_guard():
         try:
             result = topoly.homfly(
@@ -169,4 +176,4 @@ def identify_here(
     if name in ("TMC", "Unknown", "") or name.lower().startswith("unknown"):
         logger.debug("topoly returned %r: knot type unknown", name)
         return UNKNOWN
-    return normalise_knot_name(name)
+    return name if components else normalise_knot_name(name)

@@ -18,6 +18,7 @@ from knotmm.knots.writhe import as_chain
 __all__ = [
     "UNKNOWN",
     "identify_knot",
+    "identify_link",
     "start_worker",
     "submit_identification",
     "topoly_available",
@@ -118,3 +119,42 @@ def identify_knot(
     """
     handle = submit_identification(positions, chiral, max_cross, minimal)
     return None if handle is None else handle.result()
+
+
+def identify_link(rings, max_cross: int = 60) -> str | None:
+    """topoly's name for the link of several closed chains, from its HOMFLY-PT polynomial.
+
+    Parameters
+    ----------
+    rings : sequence of array_like, each shape (n_beads, 3)
+        The closed chains (each closed from its last bead to its first).
+    max_cross : int, optional
+        As in :func:`identify_knot`.
+
+    Returns
+    -------
+    str or None
+        topoly's name as it gives it: a link table name (``'L2a1'``: the Hopf link,
+        ``'L5a1'``: the Whitehead link, signed where chiral), or the split union of knots
+        (``'0_1U0_1'``) when the polynomial is a split link's (which does not prove the
+        chains apart: some non-split links share the unlink's polynomial);
+        :data:`UNKNOWN` for too many crossings or a polynomial outside topoly's tables;
+        ``None`` without topoly or when the worker could not answer.
+
+    Raises
+    ------
+    ValueError
+        For fewer than two chains, a chain of fewer than 3 beads, a wrong shape or
+        non-finite coordinates.
+    """
+    chains = [as_chain(r) for r in rings]
+    if len(chains) < 2 or any(c.ndim != 2 for c in chains):
+        raise ValueError("identify_link needs two or more chains, each of shape (n_beads, 3)")
+    if not topoly_available():
+        return None
+    import numpy as np
+
+    from knotmm.knots.worker import shared_worker
+
+    return shared_worker().submit(np.concatenate(chains), chiral=True, max_cross=max_cross,
+                                  components=[len(c) for c in chains]).result()

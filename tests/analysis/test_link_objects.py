@@ -4,10 +4,12 @@
   found (from run.toml's record, or from its linking number alone) and analysed as one
   object, equal to its beads analysed alone; the trefoil's row equals its beads alone;
 * the Whitehead link (linking number 0), built here as the closure of the 3-braid
-  s1 s2^-1 s1 s2^-2 and read back from a DCD/PDB pair without run.toml: its rings are
-  reported as "not determined", never as "not linked" (a plane does not separate them),
-  with the reason; two rings far apart are "not linked" (a plane separates them);
-  two unlinked concentric rings in one plane are "not determined" too (no proof either way);
+  s1 s2^-1 s1 s2^-2 and read back from a DCD/PDB pair without run.toml: without knot
+  identification its rings are "not determined", never "not linked" (a plane does not
+  separate them), with the reason; with it, topoly's HOMFLY-PT polynomial of the pair (L5a1,
+  not a split link's) makes them linked; two rings far apart are "not linked" (a plane
+  separates them); two unlinked concentric rings in one plane are "not determined" (no
+  proof either way);
 * :func:`knotmm.analysis.linkage.separated_by_plane` against configurations whose answer is
   known.
 """
@@ -27,6 +29,7 @@ from knotmm.analysis.linkage import (
     separated_by_plane,
 )
 from knotmm.io.run_data import RunData
+from knotmm.knots.identify import topoly_available
 from knotmm.model.layout import ChainLayout
 
 DT = 0.5
@@ -191,6 +194,29 @@ def test_the_whitehead_link_from_a_file_is_not_determined_never_unlinked(tmp_pat
     assert d["major_radius"] is None and "not determined" in d["not_applicable"]["major_radius"]
     assert any("A-B: linked or not is not determined" in n for n in d["notes"])
     assert "not determined" in result.summary()
+
+
+@pytest.mark.skipif(not topoly_available(), reason="topoly (knot identification) missing")
+def test_the_whitehead_link_is_linked_by_its_polynomial_where_identification_is_on(tmp_path):
+    """With knot identification on, the pair's HOMFLY-PT polynomial (topoly) is L5a1's, not a
+    split link's: linked, and the system is one link; unlinked concentric rings (a split
+    link's polynomial) stay not determined."""
+    rings = braid_closure([1, -2, 1, -2, -2])
+    layout = ChainLayout(tuple(len(r) for r in rings), (True, True))
+    directory = write_run_directory(tmp_path / "wh", _falling(rings), DT,
+                                    write_run_file=False, layout=layout)
+    d = analyze_run(directory / "trajectory.dcd", topology=directory / "topology.pdb",
+                    frame_interval=DT, plots=False, knot_samples=2).to_dict()
+    status = d["system"]["linked"]["A-B"]
+    assert status["status"] == LINKED and "L5a1" in status["reason"], status
+    assert d["system"]["kind"] == "link"
+    t = 2 * np.pi * np.arange(30) / 30
+    circle = np.c_[np.cos(t), np.sin(t), 0 * t]
+    concentric = RunData.from_arrays(
+        _falling([2 * circle, 4 * circle], n_frames=20), DT, config={"model": dict(MODEL)},
+        bonds=ChainLayout((30, 30), (True, True)).bonds())
+    status = analyze(concentric, knot_samples=2).to_dict()["system"]["linked"]["A-B"]
+    assert status["status"] == NOT_DETERMINED and "split link" in status["reason"], status
 
 
 def test_rings_a_plane_separates_are_not_linked_and_interleaved_ones_not_determined():
