@@ -183,3 +183,17 @@ def test_missing_set_is_one_line_exit_2(fl, tmp_path, capsys):
     assert err.value.code == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "replicas.json" in lines[0]
+
+
+def test_simulated_p_tends_to_the_chi2_p_with_many_replicas(fl, rng):
+    """With 2000 replicas per point the errors are known: the simulated p is the chi^2 p."""
+    x = np.array([0.0, 3.0, 4.0, 5.0, 5.5, 6.0, 7.0])
+    sy = np.full(7, 0.05)
+    y = 1.0 + 0.05 * x + np.array([0.06, -0.05, 0.02, 0.07, -0.08, 0.01, 0.04])
+    fit = fl.weighted_fit(x, y, sy)
+    p = fl.simulated_p(fit, sy, np.zeros(7), np.zeros(7), [2000] * 7, fit["chi2"], 400, rng)
+    assert 0.05 < fit["p"] < 0.95
+    assert p == pytest.approx(fit["p"], abs=0.08)
+    exact = fl.weighted_fit(x, 1.0 + 0.05 * x, sy)
+    assert fl.simulated_p(exact, sy, np.zeros(7), np.zeros(7), [8] * 7, exact["chi2"],
+                          50, rng) == 1.0
