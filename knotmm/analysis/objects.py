@@ -188,8 +188,9 @@ def elasto_keys(data, n_beads: int, notes: list) -> dict:
 def analyze_open_chain(data, chains, t_from=None, t_to=None, p=None, q=None) -> AnalysisResult:
     """The analysis of one open chain (module docstring): speed, shape, end-to-end vector.
 
-    The window is :func:`knotmm.analysis.window.steady_window`'s (``--from``/``--to``
-    replace its ends); no knot type is identified, so nothing cuts it.
+    The window is :func:`knotmm.analysis.window.steady_window`'s on the open chain's own
+    signals (speed, Rg, end-to-end length and angle; ``--from``/``--to`` replace its ends);
+    no knot type is identified and no torus radius looked at, so neither cuts it.
 
     Raises
     ------
@@ -201,7 +202,7 @@ def analyze_open_chain(data, chains, t_from=None, t_to=None, p=None, q=None) -> 
                           "torus; leave them out")
     notes = [n for n in data.notes if "no bond closing the ring" not in n]
     times, positions = data.times, data.positions
-    window = steady_window(times, positions, t_from=t_from, t_to=t_to)
+    window = steady_window(times, positions, t_from=t_from, t_to=t_to, open_chain=True)
     notes += window.notes
     sel = window.frames
     coords = cylindrical(positions)

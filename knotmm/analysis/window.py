@@ -38,6 +38,13 @@ radius shrank by more than 2 ``tol``), as a ``"departure: <signal>"`` of the fir
 to leave its band otherwise, or as the ``"end of trajectory"``. Independently,
 ``collapse_time`` is the first time after the window start at which the smoothed radius
 is that far below its steady level (None if it never is).
+
+An open chain (``steady_window(..., open_chain=True)``) has no torus: its signals are the
+falling speed, the radius of gyration ``rg`` (d), the end-to-end length ``end_to_end`` (d)
+and the end-to-end vector's angle to the vertical ``angle`` (rad); the same two passes run
+with bands of ``tol`` and ``fine_tol`` of each signal's own level (the angle's 0.1 and 0.02 rad),
+no swirl averaging, and no collapse: the end is a departure of a signal or the end of the
+trajectory.
 """
 
 from __future__ import annotations
@@ -54,6 +61,7 @@ from knotmm.errors import ConfigError
 
 __all__ = [
     "Window",
+    "open_chain_signals",
     "steady_window",
     "window_signals",
     "longest_run",
@@ -72,6 +80,9 @@ MIN_FRAMES = 16
 MIN_ROTATION_FRACTION = 0.2
 
 _SIGNALS = ("radius", "cross_section", "speed", "tilt")
+#: An open chain's signals (no torus): speed, radius of gyration, end-to-end length and angle.
+_OPEN_SIGNALS = ("speed", "rg", "end_to_end", "angle")
+_ANGLES = ("tilt", "angle")  # bands in rad about their level, not relative
 _COARSE_TILT = 0.1  # rad
 _FINE_TILT = 0.02  # rad
 
@@ -170,6 +181,33 @@ def window_signals(
     return {"radius": radius, "cross_section": cross, "speed": speed, "tilt": tilt}
 
 
+def open_chain_signals(times: np.ndarray, positions: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-frame signals of an open chain's steady window.
+
+    Parameters
+    ----------
+    times : ndarray, shape (n_frames,)
+        In tau_d.
+    positions : ndarray, shape (n_frames, n_beads, 3)
+        In d, beads in chain order.
+
+    Returns
+    -------
+    dict of ndarray, each shape (n_frames,)
+        ``speed`` v = -dz_com/dt (d/tau_d), ``rg`` the radius of gyration (d),
+        ``end_to_end`` |r_last - r_first| (d) and ``angle`` its angle to the vertical (rad).
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    com = x.mean(axis=1)
+    speed = -np.gradient(com[:, 2], times) if len(times) > 1 else np.zeros(1)
+    rg = np.sqrt(np.mean(np.sum((x - com[:, None, :]) ** 2, axis=-1), axis=1))
+    e = x[:, -1] - x[:, 0]
+    length = np.linalg.norm(e, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        angle = np.nan_to_num(np.arccos(np.clip(np.abs(e[:, 2]) / length, 0.0, 1.0)))
+    return {"speed": speed, "rg": rg, "end_to_end": length, "angle": angle}
+
+
 def rotation_unmeasured(period: float, uncertainty: float, length: float) -> str | None:
     """Why a rotation period is not measured in a window, or None when it is.
 
@@ -243,22 +281,29 @@ def longest_run(mask: np.ndarray) -> tuple[int, int] | None:
     return int(starts[k]), int(stops[k])
 
 
-def _coarse(signals: dict[str, np.ndarray], smooth: int, tol: float):
+def _coarse(signals: dict[str, np.ndarray], smooth: int, tol: float,
+            names: tuple[str, ...] = _SIGNALS):
     """Pass 1: mask of frames whose smoothed signals lie in their coarse bands."""
     smoothed = {k: median_filter(v, size=smooth, mode="nearest") for k, v in signals.items()}
-    radius_level = _mode_level(smoothed["radius"], tol * np.median(smoothed["radius"]))
+    radius_level = None
+    if "radius" in names:
+        radius_level = _mode_level(smoothed["radius"], tol * np.median(smoothed["radius"]))
     bands: dict[str, tuple[float, float]] = {}
-    mask = np.ones(len(signals["radius"]), dtype=bool)
-    for name in _SIGNALS:
+    mask = np.ones(len(signals[names[0]]), dtype=bool)
+    for name in names:
         s = smoothed[name]
         resid = signals[name] - s
         noise = 4.0 * 1.4826 * np.median(np.abs(resid - np.median(resid))) / np.sqrt(smooth)
         if name == "tilt":
             level, half = 0.0, max(_COARSE_TILT, noise)
             mask &= s <= half
+        elif name == "angle":  # about its own level, in rad
+            half = max(_COARSE_TILT, noise)
+            level = _mode_level(s, half)
+            mask &= np.abs(s - level) <= half
         else:
             scale = radius_level
-            if name == "speed":
+            if name not in ("radius", "cross_section"):  # the speed, an open chain's sizes
                 scale = abs(_mode_level(s, tol * max(abs(np.median(s)), 1e-12)))
             half = max(tol * scale, noise, 1e-12)
             level = _mode_level(s, half)
@@ -277,12 +322,16 @@ def _swirl_frames(t, cyl: Cylindrical, start: int, stop: int) -> int:
     return width if 1 <= width <= (stop - start + 1) // 4 else 0
 
 
-def _fine(t, cyl, signals, start: int, stop: int, fine_tol: float):
-    """Pass 2: grow the window from the middle third of the coarse window.
+def _fine(t, cyl, signals, start: int, stop: int, fine_tol: float,
+          names: tuple[str, ...] = _SIGNALS):
+    """Pass 2: grow the window from the middle third of the coarse window (averaged over a
+    swirl period where ``cyl`` is given, else frame by frame).
 
     Returns (start, stop, first signal to leave after the end or None, levels).
     """
-    width = _swirl_frames(t, cyl, start, stop) if stop - start + 1 >= 2 * MIN_FRAMES else 0
+    width = 0
+    if cyl is not None and stop - start + 1 >= 2 * MIN_FRAMES:
+        width = _swirl_frames(t, cyl, start, stop)
     size = max(width, 1)
     third = (stop - start + 1) // 3
     if third >= 2 * size:
@@ -294,11 +343,11 @@ def _fine(t, cyl, signals, start: int, stop: int, fine_tol: float):
     behind_ok = np.ones(n, dtype=bool)
     leaving: dict[str, np.ndarray] = {}
     levels = {}
-    for name in _SIGNALS:
+    for name in names:
         centred = uniform_filter1d(signals[name], size=size, mode="nearest")
         level = float(np.median(centred[ref]))
         lo, hi = np.percentile(centred[ref], [5.0, 95.0])
-        floor = _FINE_TILT if name == "tilt" else fine_tol * abs(level)
+        floor = _FINE_TILT if name in _ANGLES else fine_tol * abs(level)
         band = max(floor, 0.75 * (hi - lo), 1e-12)
         ahead_ok &= np.abs(_running_mean(signals[name], size, ahead=True) - level) <= band
         bad_behind = np.abs(_running_mean(signals[name], size, ahead=False) - level) > band
@@ -311,7 +360,7 @@ def _fine(t, cyl, signals, start: int, stop: int, fine_tol: float):
     new_stop = ref.stop + int(bad_after[0]) - 1 if bad_after.size else n - 1
     culprit = None
     if new_stop < n - 1:
-        culprit = next(k for k in _SIGNALS if leaving[k][new_stop + 1])
+        culprit = next(k for k in names if leaving[k][new_stop + 1])
     return new_start, new_stop, culprit, levels
 
 
@@ -334,6 +383,7 @@ def steady_window(
     tol: float = 0.05,
     smooth: int | None = None,
     fine_tol: float = 0.01,
+    open_chain: bool = False,
 ) -> Window:
     """Find the steady periodic window (see the module docstring for the criterion).
 
@@ -354,6 +404,9 @@ def steady_window(
         ``max(5, n_frames // 50)`` (odd).
     fine_tol : float
         Relative half-width of the fine bands (before widening to the signals' spread).
+    open_chain : bool
+        The positions are one open chain: its own signals (:func:`open_chain_signals`), no
+        torus, no swirl, no collapse (module docstring).
 
     Returns
     -------
@@ -379,9 +432,13 @@ def steady_window(
         raise ConfigError(f"--from {t_from:g} must be earlier than --to {t_to:g}")
 
     smooth = int(max(5, n // 50) if smooth is None else smooth) | 1
-    cyl = cylindrical(positions)
-    signals = window_signals(t, positions, cyl)
-    mask, smoothed, bands = _coarse(signals, smooth, tol)
+    if open_chain:
+        cyl, names = None, _OPEN_SIGNALS
+        signals = open_chain_signals(t, positions)
+    else:
+        cyl, names = cylindrical(positions), _SIGNALS
+        signals = window_signals(t, positions, cyl)
+    mask, smoothed, bands = _coarse(signals, smooth, tol, names)
     run = longest_run(_close_gaps(mask, smooth))
     notes: list[str] = []
     levels: dict = {k: {"level": v[0], "band": v[1]} for k, v in bands.items()}
@@ -390,12 +447,14 @@ def steady_window(
         notes.append("no frame is steady by the criterion: the whole trajectory is used")
         start, stop = 0, n - 1
     else:
-        start, stop, culprit, levels = _fine(t, cyl, signals, *run, fine_tol)
+        start, stop, culprit, levels = _fine(t, cyl, signals, *run, fine_tol, names)
 
     # collapse: the smoothed radius falls well below its steady level after the steady start
-    r_level, r_band = bands["radius"]
-    low = np.flatnonzero(smoothed["radius"][start:] < r_level - 2.0 * r_band)
-    collapse = start + int(low[0]) if low.size else None
+    collapse = None
+    if not open_chain:
+        r_level, r_band = bands["radius"]
+        low = np.flatnonzero(smoothed["radius"][start:] < r_level - 2.0 * r_band)
+        collapse = start + int(low[0]) if low.size else None
     collapse_time = float(t[collapse]) if collapse is not None else None
 
     auto_start, auto_stop = t_from is None, t_to is None
@@ -437,6 +496,13 @@ def steady_window(
         f"pass {tol:.0%} around their modes (running median of {smooth} frames), then "
         f"one-swirl-period averages within max({fine_tol:.0%}, spread) of the middle third"
     )
+    if open_chain:
+        criterion = (
+            f"an open chain's signals (falling speed, radius of gyration, end-to-end length "
+            f"and angle to the vertical) in their bands: coarse pass {tol:.0%} around their "
+            f"modes (the angle 0.1 rad; running median of {smooth} frames), then frame by "
+            f"frame within max({fine_tol:.0%}, spread) of the middle third"
+        )
     return Window(
         start=start,
         stop=stop,

@@ -125,3 +125,32 @@ def test_tilting_structure_ends_the_window():
     assert 155.0 <= w.t1 <= 166.0
     assert w.end_reason.startswith("departure")
     assert w.collapse_time is None
+
+
+def _turning_arc(times: np.ndarray, speed: float = 3.0) -> np.ndarray:
+    """A rigid semicircular arc (30 beads, radius 3 d), its ends on the x axis, falling at
+    ``speed`` and turning about its end-to-end line from lying flat (t < 25) to standing
+    upright (t > 30): its speed, Rg, end-to-end length (6 d) and angle to the vertical
+    (90 deg) never change; only the beads' distance from the vertical axis does."""
+    phi = np.linspace(0.0, np.pi, 30)
+    local = np.c_[3.0 * np.cos(phi), 3.0 * np.sin(phi), np.zeros(30)]
+    local[:, 1] -= local[:, 1].mean()  # turning about the line through its centre of mass
+    theta = 0.5 * np.pi * np.clip((times - 25.0) / 5.0, 0.0, 1.0)
+    y = local[None, :, 1] * np.cos(theta)[:, None]
+    z = local[None, :, 1] * np.sin(theta)[:, None] - speed * times[:, None]
+    return np.stack([np.broadcast_to(local[:, 0], y.shape), y, z], axis=-1)
+
+
+def test_an_open_chain_has_its_own_window_and_no_torus_collapse():
+    times = np.arange(161) * 0.25
+    x = _turning_arc(times)
+    ring = steady_window(times, x)  # read as a torus, it tilts and its "radius" shrinks
+    assert ring.t1 <= 25.0 and ring.end_reason in (
+        "collapse", "departure: radius", "departure: cross_section", "departure: tilt")
+    w = steady_window(times, x, open_chain=True)
+    assert (w.t0, w.t1, w.end_reason) == (0.0, 40.0, "end of trajectory")
+    assert w.collapse_time is None and "torus" not in w.criterion
+    assert set(w.levels) == {"speed", "rg", "end_to_end", "angle"}
+    assert w.levels["end_to_end"]["level"] == pytest.approx(6.0)
+    assert w.levels["angle"]["level"] == pytest.approx(0.5 * np.pi)
+    assert w.levels["speed"]["level"] == pytest.approx(3.0)
