@@ -389,7 +389,8 @@ def _p(p: float, draws_floor: float = 0.0025) -> str:
 def summary(rows: list[dict], which: str = "knots") -> list[str]:
     """One line per set: each straight line's verdict with chi^2/dof and simulated p, the
     laws ordered by chi^2 (same points, two parameters each: AIC differences are chi^2
-    differences), and the quadratic term's F-test in the ACN."""
+    differences), the quadratic term's F-test in the ACN, and the slope in the crossing
+    number with its error (V0 included, scaled by ``sqrt(chi^2/dof)`` where above 1)."""
     by = {(r["set"], r["law"], r["degree"], r["points"]): r for r in rows}
     out = []
     for label in dict.fromkeys(r["set"] for r in rows):
@@ -398,8 +399,11 @@ def summary(rows: list[dict], which: str = "knots") -> list[str]:
                  for r in lines]
         quad = by[(label, "ACN", 2, which)]
         sig = "significant" if quad["p_quad"] < STRAINED else "not significant"
+        cn = by[(label, "crossing_number", 1, which)]
         out.append(f"- {label}: " + "; ".join(parts) + f". Quadratic term in the ACN {sig} "
-                   f"(F-test p {_g(quad['p_quad'], 2)}).")
+                   f"(F-test p {_g(quad['p_quad'], 2)}). Slope in the crossing number "
+                   f"{cn['c1']:.3f} +- {cn['c1_se_scaled']:.3f} "
+                   f"({cn['c1'] / cn['c1_se_scaled']:.1f} s.e.).")
     return out
 
 

@@ -197,3 +197,17 @@ def test_simulated_p_tends_to_the_chi2_p_with_many_replicas(fl, rng):
     exact = fl.weighted_fit(x, 1.0 + 0.05 * x, sy)
     assert fl.simulated_p(exact, sy, np.zeros(7), np.zeros(7), [8] * 7, exact["chi2"],
                           50, rng) == 1.0
+
+
+def test_readme_states_the_saved_verdicts_and_table(fl):
+    """The README's per-set lines and six-knot table are those laws.md holds."""
+    readme = (FOLDER / "README.md").read_text()
+    md = (FOLDER / "results" / "laws.md").read_text()
+    verdicts = [line for line in md.splitlines() if line.startswith("- N")]
+    assert len(verdicts) == 16
+    for line in verdicts:
+        assert line in readme, line
+    table = [line for line in md.split("Straight lines over all 7")[0].splitlines()
+             if line.startswith("| N")]
+    assert len(table) == 16 and all(line in readme for line in table)
+    assert "python examples/knot_sedimentation/fit_laws.py" in readme
