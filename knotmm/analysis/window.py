@@ -463,10 +463,18 @@ def steady_window(
     if t_to is not None:
         stop = int(np.argmin(np.abs(t - t_to)))
     if stop - start + 1 < MIN_FRAMES:
+        found = (t[start], t[stop], stop - start + 1)
         if auto_stop:
             stop = n - 1
         if auto_start and stop - start + 1 < MIN_FRAMES:
             start = 0
+        if auto_start or auto_stop:
+            notes.append(
+                f"the steady stretch found, t = {found[0]:g}-{found[1]:g}, holds {found[2]} "
+                f"frames, fewer than the {MIN_FRAMES} the analysis needs: the window is "
+                f"widened to t = {t[start]:g}-{t[stop]:g}, which is not steady; run longer "
+                f"(or write frames more often) or set --from/--to"
+            )
     if stop - start + 1 < MIN_FRAMES:
         raise ConfigError(
             f"the window [{t[start]:g}, {t[stop]:g}] holds {stop - start + 1} frames: the "

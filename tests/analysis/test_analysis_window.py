@@ -154,3 +154,16 @@ def test_an_open_chain_has_its_own_window_and_no_torus_collapse():
     assert w.levels["end_to_end"]["level"] == pytest.approx(6.0)
     assert w.levels["angle"]["level"] == pytest.approx(0.5 * np.pi)
     assert w.levels["speed"]["level"] == pytest.approx(3.0)
+
+
+def test_a_steady_stretch_too_short_is_widened_with_a_note():
+    """Steady only near its end (about 12 frames): the window is widened, and says so."""
+    times = np.arange(161) * 0.25
+    x = _turning_arc(times)
+    x[..., 1] = _turning_arc(np.zeros_like(times))[..., 1]  # lying flat throughout
+    speed = 3.0 + 2.0 * np.minimum(times, 39.0)  # speeding up until t = 39
+    z_com = -np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * 0.25)])
+    x[..., 2] = z_com[:, None]
+    w = steady_window(times, x, open_chain=True)
+    assert w.stop - w.start + 1 >= 16
+    assert any("fewer than the 16" in note and "not steady" in note for note in w.notes)
