@@ -77,6 +77,13 @@ def test_a_second_interruption_is_raised(sigint_raises):
     _interrupt_after(started, times=2)
     with pytest.raises(KeyboardInterrupt):
         run_together(2, _body(ended, started, 2))
+    # raised at once, the runs still going: they end at their next step (and ask the others
+    # to stop on their way out); only then is the stop request cleared for the next test
+    end = time.monotonic() + 10
+    while len(ended) < 2 and time.monotonic() < end:
+        time.sleep(0.01)
+    assert sorted(ended) == [0, 1]
+    time.sleep(0.05)
 
 
 def test_groups_of_at_most_max_together_one_after_another():
