@@ -161,6 +161,11 @@ void RPYIntegrator::checkInitialized() const {
         throw OpenMMException("RPYIntegrator: not bound to a Context yet");
 }
 
+void RPYIntegrator::stateChanged(State::DataType changed) {
+    if (changed & State::Positions)
+        positionsVersion++;
+}
+
 void RPYIntegrator::takeStep(double targetTime) {
     // Barostats, thermostats etc. could change the state; then cached velocities are stale.
     if (context->updateContextState())

@@ -36,14 +36,13 @@ public:
  * matrix and choleskyLower), Lanczos with its Krylov loop on the host and each product mu v
  * on the device.
  *
- * Precision (the device must support double precision). Double: the Context holds the state
- * exactly. Mixed: the state the steps start from is what the Context holds, a float plus a
- * float correction per number (about 48 bits), so equal() compares two vectors as the Context
- * would store them; checkpoints continue bit for bit. Single: the Context's float positions
- * are scratch; the backend keeps the positions it last wrote in double and starts the next
- * step from them while the Context's positions are still the ones it wrote (a device
- * comparison each step), else from the Context's (changed from outside: setPositions, a
- * loaded checkpoint, which therefore continues from float positions, not bit for bit).
+ * Precision (the device must support double precision). The stepper keeps the state in
+ * double on the device in every precision (Backend.h); the Context's positions are what it
+ * writes after a step (double: exactly; mixed: a float plus a float correction per number,
+ * about 48 bits; single: a float) and the scratch of each force evaluation (shifted to the
+ * centre of mass). holds() and equal() compare as the Context stores positions, so positions
+ * read back from the Context and set again count as unchanged; checkpoints hold the state and
+ * continue bit for bit in every precision.
  */
 class CommonRPYBackend : public RPYBackend {
 public:
@@ -53,8 +52,9 @@ public:
     void applySettings(const RPYIntegrator& integrator) override;
     void getPositions(OpenMM::ContextImpl& context, StateVector& y) override;
     void setPositions(OpenMM::ContextImpl& context, const StateVector& y) override;
+    bool holds(OpenMM::ContextImpl& context, const StateVector& y) override;
     void velocity(OpenMM::ContextImpl& context, const StateVector& y, StateVector& v) override;
-    void groupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
+    void groupEnergies(OpenMM::ContextImpl& context, const StateVector& at, const std::vector<int>& groups,
                        std::vector<double>& energies) override;
     void factorNoise(const StateVector& y) override;
     void applyNoise(double scale, const StateVector& z, StateVector& out) override;
@@ -66,12 +66,15 @@ public:
     double norm(const StateVector& v) override;
     double maxBeadNorm(const StateVector& v) override;
     int firstNonFinite(const StateVector& v) override;
+    TryCheck checkTry(const StateVector& err, const StateVector& y1) override;
     void download(const StateVector& v, std::vector<double>& host) override;
     void upload(const std::vector<double>& host, StateVector& v) override;
 
 private:
-    /** y = the positions the steps start from (getPositions). */
-    void readState(OpenMM::ComputeArray& y);
+    /** y = the Context's bead positions. */
+    void readPositions(OpenMM::ComputeArray& y);
+    /** The number of i with a_i != b_i, as the Context stores positions (countDifferent in kernels/rpy.cc). */
+    int countDifferent(OpenMM::ComputeArray& a, OpenMM::ComputeArray& b);
     /** The Context's bead positions = y, minus their centre of mass if `shift`; virtual sites placed. */
     void writePositions(OpenMM::ComputeArray& y, bool shift);
     /** out = mu(x) f on the device. */
@@ -81,7 +84,6 @@ private:
     OpenMM::ComputeContext& cc;
     int n = 0, numAtoms = 0;
     bool hasVirtualSites = false, mixed = false, single = false;
-    bool haveShadow = false;  // single precision: shadow holds the positions posq was last written from
     double diameter, mu0;
     RPYMobility hostMobility;  // the dense matrix for Cholesky noise, on the host
     bool lanczos = false;
@@ -89,13 +91,12 @@ private:
     LanczosSqrt lanczosSqrt;
     int tileSize, reduceSize;
     OpenMM::ComputeArray particleBead;                 // particle -> bead, -1 for a virtual site
-    OpenMM::ComputeArray com, forces, scalars, counts;  // 3, 3n, 2 doubles; 1 int
+    OpenMM::ComputeArray com, forces, scalars, counts;  // 3, 3n, 3 doubles; 1 int
     OpenMM::ComputeArray noiseAt, lanczosIn, lanczosOut, energyPosition;  // 3n doubles each
     OpenMM::ComputeArray savedPosq, savedPosqCorrection, savedForces;    // groupEnergies
-    OpenMM::ComputeArray shadow, writtenPosq;                            // single precision
     OpenMM::ComputeKernel readPositionsKernel, writePositionsKernel, centreOfMassKernel, readForcesKernel,
         mobilityKernel, sumSquaresKernel, maxBeadSquareKernel, firstNonFiniteKernel, countDifferentKernel,
-        countChangedKernel;
+        checkTryKernel;
     std::map<std::string, std::string> defines;
     std::map<std::string, OpenMM::ComputeKernel> combineKernels;  // by pattern of terms
     std::vector<double> host, hostOut, noiseAtHost, mat;           // host scratch
