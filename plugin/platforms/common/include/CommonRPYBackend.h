@@ -24,6 +24,12 @@ public:
     OpenMM::ComputeArray a;
 };
 
+/** The device array of a vector (kernels take arrays by non-const reference; inputs are never written). */
+inline OpenMM::ComputeArray& data(StateVector& v) { return static_cast<CommonVector&>(v).a; }
+inline OpenMM::ComputeArray& data(const StateVector& v) {
+    return const_cast<OpenMM::ComputeArray&>(static_cast<const CommonVector&>(v).a);
+}
+
 /**
  * RPYBackend over a ComputeContext. Vectors are ComputeArrays of 3n doubles (bead-major). The
  * Context's positions (posq, in mixed precision also posqCorrection) and forces (the 64-bit
@@ -33,8 +39,9 @@ public:
  * kernel per pattern of terms, compiled when first used); norms and tests are device
  * reductions with one small download each. Noise: normals drawn on the host from the
  * stepper's stream and uploaded; Cholesky on the host (the Reference backend's RPYMobility
- * matrix and choleskyLower), Lanczos with its Krylov loop on the host and each product mu v
- * on the device.
+ * matrix and choleskyLower); Lanczos with its Krylov loop on the device (src/CommonRPYNoise.cpp:
+ * products, dot products, Gram-Schmidt and norms there; alpha and beta downloaded together
+ * once per iteration for the small tridiagonal problem, LanczosSmallProblem, on the host).
  *
  * Precision (the device must support double precision). The stepper keeps the state in
  * double on the device in every precision (Backend.h); the Context's positions are what it
@@ -80,6 +87,8 @@ private:
     /** out = mu(x) f on the device. */
     void mobilityTimes(OpenMM::ComputeArray& x, OpenMM::ComputeArray& f, OpenMM::ComputeArray& out);
     OpenMM::ComputeKernel& combineKernel(const std::string& pattern, int count);
+    /** out = scale mu(noiseAt)^(1/2) z by Lanczos on the device (CommonRPYNoise.cpp). */
+    void lanczosNoise(double scale, OpenMM::ComputeArray& z, OpenMM::ComputeArray& out);
 
     OpenMM::ComputeContext& cc;
     int n = 0, numAtoms = 0;
@@ -88,15 +97,17 @@ private:
     RPYMobility hostMobility;  // the dense matrix for Cholesky noise, on the host
     bool lanczos = false;
     double lanczosTolerance = 1e-6;
-    LanczosSqrt lanczosSqrt;
+    LanczosSmallProblem lanczosSmall;
+    OpenMM::ComputeArray basis, proj, lanczosScalars;  // Krylov vectors, projections, alpha and beta: at first use
     int tileSize, reduceSize;
     OpenMM::ComputeArray particleBead;                 // particle -> bead, -1 for a virtual site
     OpenMM::ComputeArray com, forces, scalars, counts;  // 3, 3n, 3 doubles; 1 int
-    OpenMM::ComputeArray noiseAt, lanczosIn, lanczosOut, energyPosition;  // 3n doubles each
+    OpenMM::ComputeArray noiseAt, lanczosV, lanczosW, energyPosition;  // 3n doubles each
     OpenMM::ComputeArray savedPosq, savedPosqCorrection, savedForces;    // groupEnergies
     OpenMM::ComputeKernel readPositionsKernel, writePositionsKernel, centreOfMassKernel, readForcesKernel,
         mobilityKernel, sumSquaresKernel, maxBeadSquareKernel, firstNonFiniteKernel, countDifferentKernel,
-        checkTryKernel;
+        checkTryKernel, lanczosDotsKernel, lanczosSubtractKernel, lanczosAlphaBetaKernel, lanczosScaleKernel,
+        lanczosCombineKernel;
     std::map<std::string, std::string> defines;
     std::map<std::string, OpenMM::ComputeKernel> combineKernels;  // by pattern of terms
     std::vector<double> host, hostOut, noiseAtHost, mat;           // host scratch

@@ -323,3 +323,84 @@ KERNEL void checkTry(GLOBAL const double* RESTRICT err, GLOBAL const double* RES
         result[2] = first[0];
     }
 }
+
+// --- Lanczos noise (CommonRPYNoise.cpp): the Krylov vectors on the device --------------------
+// The basis V holds the Krylov vectors one after another, DIM = 3 NUM_BEADS numbers each.
+
+/** proj[offset+j] = V_j . w for j < count (one work group of REDUCE_SIZE per j). */
+KERNEL void lanczosDots(GLOBAL const double* RESTRICT basis, GLOBAL const double* RESTRICT w,
+        GLOBAL double* RESTRICT proj, int count, int offset) {
+    LOCAL double part[REDUCE_SIZE];
+    for (int j = GROUP_ID; j < count; j += NUM_GROUPS) {
+        GLOBAL const double* v = basis+(mm_long) j*(3*NUM_BEADS);
+        double s = 0;
+        for (int i = LOCAL_ID; i < 3*NUM_BEADS; i += LOCAL_SIZE)
+            s += v[i]*w[i];
+        part[LOCAL_ID] = s;
+        for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+            SYNC_THREADS;
+            if (LOCAL_ID < stride)
+                part[LOCAL_ID] += part[LOCAL_ID+stride];
+        }
+        SYNC_THREADS;
+        if (LOCAL_ID == 0)
+            proj[offset+j] = part[0];
+        SYNC_THREADS;
+    }
+}
+
+/** w -= sum_j proj[offset+j] V_j over j < count (the sum in the order of j). */
+KERNEL void lanczosSubtract(GLOBAL const double* RESTRICT basis, GLOBAL double* RESTRICT w,
+        GLOBAL const double* RESTRICT proj, int count, int offset) {
+    for (int i = GLOBAL_ID; i < 3*NUM_BEADS; i += GLOBAL_SIZE) {
+        double s = 0;
+        for (int j = 0; j < count; j++)
+            s += proj[offset+j]*basis[(mm_long) j*(3*NUM_BEADS)+i];
+        w[i] -= s;
+    }
+}
+
+/**
+ * result[0] = proj[k] (alpha_k, from the first Gram-Schmidt pass), result[1] = |w| (beta_k):
+ * the one download of an iteration (one work group of REDUCE_SIZE).
+ */
+KERNEL void lanczosAlphaBeta(GLOBAL const double* RESTRICT w, GLOBAL const double* RESTRICT proj, int k,
+        GLOBAL double* RESTRICT result) {
+    LOCAL double part[REDUCE_SIZE];
+    double s = 0;
+    for (int i = LOCAL_ID; i < 3*NUM_BEADS; i += LOCAL_SIZE)
+        s += w[i]*w[i];
+    part[LOCAL_ID] = s;
+    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+        SYNC_THREADS;
+        if (LOCAL_ID < stride)
+            part[LOCAL_ID] += part[LOCAL_ID+stride];
+    }
+    SYNC_THREADS;
+    if (LOCAL_ID == 0) {
+        result[0] = proj[k];
+        result[1] = sqrt(part[0]);
+    }
+}
+
+/** V_k = v = w / c (c: |z| for the first vector, beta_(k-1) after; v: the product's input). */
+KERNEL void lanczosScale(GLOBAL const double* RESTRICT w, GLOBAL double* RESTRICT basis, int k, double c,
+        GLOBAL double* RESTRICT v) {
+    GLOBAL double* vk = basis+(mm_long) k*(3*NUM_BEADS);
+    for (int i = GLOBAL_ID; i < 3*NUM_BEADS; i += GLOBAL_SIZE) {
+        const double x = w[i]/c;
+        vk[i] = x;
+        v[i] = x;
+    }
+}
+
+/** out = sum_j coeff[j] V_j over j < count. */
+KERNEL void lanczosCombine(GLOBAL const double* RESTRICT basis, GLOBAL const double* RESTRICT coeff, int count,
+        GLOBAL double* RESTRICT out) {
+    for (int i = GLOBAL_ID; i < 3*NUM_BEADS; i += GLOBAL_SIZE) {
+        double s = 0;
+        for (int j = 0; j < count; j++)
+            s += coeff[j]*basis[(mm_long) j*(3*NUM_BEADS)+i];
+        out[i] = s;
+    }
+}

@@ -19,15 +19,7 @@ using namespace KnotMM;
 using std::string;
 using std::vector;
 
-namespace {
-
-inline ComputeArray& data(StateVector& v) { return static_cast<CommonVector&>(v).a; }
-inline ComputeArray& data(const StateVector& v) {
-    // Kernels take arrays by non-const reference; the backend never writes an input.
-    return const_cast<ComputeArray&>(static_cast<const CommonVector&>(v).a);
-}
-
-} // namespace
+using KnotMM::data;
 
 CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, const RPYIntegrator& integrator)
     : cc(cc), diameter(integrator.getBeadDiameter()), mu0(integrator.getMobility()),
@@ -54,7 +46,7 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     com.initialize<double>(cc, 3, "rpyCentreOfMass");
     scalars.initialize<double>(cc, 3, "rpyScalars");
     counts.initialize<int>(cc, 1, "rpyCounts");
-    for (ComputeArray* a : {&forces, &noiseAt, &lanczosIn, &lanczosOut, &energyPosition})
+    for (ComputeArray* a : {&forces, &noiseAt, &lanczosV, &lanczosW, &energyPosition})
         a->initialize<double>(cc, 3 * n, "rpyVector");
 
     defines["NUM_BEADS"] = cc.intToString(n);
@@ -75,9 +67,15 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     firstNonFiniteKernel = program->createKernel("firstNonFinite");
     countDifferentKernel = program->createKernel("countDifferent");
     checkTryKernel = program->createKernel("checkTry");
+    lanczosDotsKernel = program->createKernel("lanczosDots");
+    lanczosSubtractKernel = program->createKernel("lanczosSubtract");
+    lanczosAlphaBetaKernel = program->createKernel("lanczosAlphaBeta");
+    lanczosScaleKernel = program->createKernel("lanczosScale");
+    lanczosCombineKernel = program->createKernel("lanczosCombine");
     // the pair loop and the reductions run in work groups of exactly TILE and REDUCE_SIZE items
     for (ComputeKernel* k : {&mobilityKernel, &sumSquaresKernel, &maxBeadSquareKernel, &firstNonFiniteKernel,
-                             &countDifferentKernel, &centreOfMassKernel, &checkTryKernel})
+                             &countDifferentKernel, &centreOfMassKernel, &checkTryKernel, &lanczosDotsKernel,
+                             &lanczosAlphaBetaKernel})
         if ((*k)->getMaxBlockSize() < (k == &mobilityKernel ? tileSize : reduceSize))
             throw OpenMMException("RPYIntegrator: the device runs kernel " + (*k)->getName() + " in work groups of at most " +
                                   std::to_string((*k)->getMaxBlockSize()) + " items, fewer than it needs");
@@ -104,7 +102,7 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     readForcesKernel->addArg(forces);
     mobilityKernel->addArg(noiseAt);  // x, f, v: set per call
     mobilityKernel->addArg(forces);
-    mobilityKernel->addArg(lanczosOut);
+    mobilityKernel->addArg(lanczosW);
     mobilityKernel->addArg(diameter);
     mobilityKernel->addArg(mu0);
     sumSquaresKernel->addArg(forces);  // set per call
@@ -116,6 +114,26 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     countDifferentKernel->addArg(forces);  // a, b: set per call
     countDifferentKernel->addArg(forces);
     countDifferentKernel->addArg(counts);
+    // Lanczos (CommonRPYNoise.cpp): every argument set at each use
+    for (ComputeKernel* k : {&lanczosDotsKernel, &lanczosSubtractKernel}) {
+        for (int i = 0; i < 3; i++)
+            (*k)->addArg(forces);
+        (*k)->addArg(0);
+        (*k)->addArg(0);
+    }
+    lanczosAlphaBetaKernel->addArg(forces);
+    lanczosAlphaBetaKernel->addArg(forces);
+    lanczosAlphaBetaKernel->addArg(0);
+    lanczosAlphaBetaKernel->addArg(forces);
+    lanczosScaleKernel->addArg(forces);
+    lanczosScaleKernel->addArg(forces);
+    lanczosScaleKernel->addArg(0);
+    lanczosScaleKernel->addArg(1.0);
+    lanczosScaleKernel->addArg(forces);
+    lanczosCombineKernel->addArg(forces);
+    lanczosCombineKernel->addArg(forces);
+    lanczosCombineKernel->addArg(0);
+    lanczosCombineKernel->addArg(forces);
     checkTryKernel->addArg(forces);  // err, y1: set per call
     checkTryKernel->addArg(forces);
     checkTryKernel->addArg(scalars);
@@ -215,54 +233,6 @@ void CommonRPYBackend::groupEnergies(ContextImpl& context, const StateVector& at
         throw;
     }
     restore();
-}
-
-// --- noise -------------------------------------------------------------------------------------
-
-void CommonRPYBackend::factorNoise(const StateVector& y) {
-    if (lanczos) {
-        data(y).copyTo(noiseAt);  // matrix-free: applyNoise runs the Krylov iteration at noiseAt
-        return;
-    }
-    // exact: the dense Cholesky factor of the 3n x 3n mobility, on the host
-    data(y).download(host);
-    noiseAtHost.resize(3 * n);
-    for (int b = 0; b < n; b++)
-        for (int k = 0; k < 3; k++)
-            noiseAtHost[k * n + b] = host[3 * b + k];
-    hostMobility.lowerMatrix(n, noiseAtHost.data(), mat);
-    if (!choleskyLower(mat, 3 * n))
-        throw RPYStepFault(RPYStepFault::NotPositiveDefinite,
-                           "RPYIntegrator: the RPY mobility is not positive definite at these "
-                           "positions (two beads at the same point?)");
-}
-
-void CommonRPYBackend::applyNoise(double scale, const StateVector& z, StateVector& out) {
-    data(z).download(host);
-    hostOut.resize(3 * n);
-    if (!lanczos) {
-        lowerTimes(mat, 3 * n, host.data(), scale, hostOut.data());
-        data(out).upload(hostOut);
-        return;
-    }
-    // B z = mu^(1/2) z by Lanczos: the Krylov loop here, each product mu v on the device
-    lanczosSqrt.compute(
-        [&](const double* v, double* w) {
-            lanczosIn.upload(v);
-            mobilityTimes(noiseAt, lanczosIn, lanczosOut);
-            lanczosOut.download(w);
-        },
-        3 * n, host.data(), lanczosTolerance, hostOut.data());
-    for (double& x : hostOut)
-        x *= scale;
-    data(out).upload(hostOut);
-}
-
-void CommonRPYBackend::normals(NoiseStream& stream, StateVector& out) {
-    host.resize(3 * n);
-    for (double& x : host)
-        x = stream.normal();
-    data(out).upload(host);
 }
 
 // --- vector operations ---------------------------------------------------------------------------
