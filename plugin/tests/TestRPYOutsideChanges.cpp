@@ -7,7 +7,8 @@
 //      one more step equals the first step of a fresh Context at P with the same step size,
 //      bit for bit, positions and force evaluations (the velocity cached at the old positions
 //      is dropped: 1 + 3 tries evaluations; the try's result does not depend on the
-//      controller's memory, only the next step size does). The same through Context.setState.
+//      controller's memory, only the next step size does). The same through Context.setState,
+//      and for positions moved by another integrator of a CompoundIntegrator (no signal).
 //   2. Positions read back and set again (what knotmm's engine does between calls) change
 //      nothing: 10 steps equal 5 steps, getState, setPositions, 5 steps, bit for bit, with the
 //      same number of evaluations (the cached velocity is kept), here for a ring 1e4 d from
@@ -110,6 +111,38 @@ void outsideChangeHonoured(const std::string& platform, bool throughState) {
     KT_ASSERT(integ.getNumForceEvaluations() - before == 1 + 3 * tries);
 }
 
+/**
+ * Inside a CompoundIntegrator another integrator moves the positions without OpenMM's
+ * stateChanged(): a CustomIntegrator that shifts every bead by (0.3, 0, -0.2) between rk23
+ * steps; the next rk23 step equals the first step of a fresh Context at the shifted positions.
+ */
+void compoundIntegrator(const std::string& platform) {
+    Vecs start;
+    std::unique_ptr<System> system(chainSystem(20, start, 0.0));
+    CompoundIntegrator compound;
+    KnotMM::RPYIntegrator* integ = new KnotMM::RPYIntegrator(0.001, "rk23", 1e-4);
+    CustomIntegrator* shift = new CustomIntegrator(0.001);
+    shift->addComputePerDof("x", "x + vector(0.3, 0, -0.2)");
+    compound.addIntegrator(integ);
+    compound.addIntegrator(shift);
+    std::unique_ptr<Context> context(makeContext(*system, compound, platform));
+    context->setPositions(start);
+    compound.setCurrentIntegrator(0);
+    integ->step(5);
+    const double h = integ->getStepSize();
+    compound.setCurrentIntegrator(1);
+    shift->step(1);
+    const Vecs moved = positionsOf(*context);
+    compound.setCurrentIntegrator(0);
+    integ->step(1);
+    KnotMM::RPYIntegrator fresh(h, "rk23", 1e-4);
+    std::unique_ptr<Context> other(makeContext(*system, fresh, platform));
+    other->setPositions(moved);
+    fresh.step(1);
+    std::printf("  %-14s CompoundIntegrator: a shift by another integrator is followed\n", platform.c_str());
+    KT_ASSERT(positionsOf(*context) == positionsOf(*other));
+}
+
 // --- 2. positions read back and set again ----------------------------------------------------------
 
 struct Run {
@@ -202,6 +235,7 @@ int main() {
         for (const std::string& platform : platforms) {
             outsideChangeHonoured(platform, false);
             outsideChangeHonoured(platform, true);
+            compoundIntegrator(platform);
             setBackChangesNothing(platform);
             for (const char* method : {"rk23", "leimkuhler_matthews"})
                 checkpointBitForBit(platform, method);
