@@ -176,7 +176,17 @@ void RPYIntegrator::checkInitialized() const {
         throw OpenMMException("RPYIntegrator: not bound to a Context yet");
 }
 
+void RPYIntegrator::stateChanged(State::DataType changed) {
+    if (changed & State::Positions)
+        positionsVersion++;
+}
+
 void RPYIntegrator::takeStep(double targetTime) {
+    // Inside a CompoundIntegrator the other integrators move the positions without a
+    // stateChanged(): treat every step as after an outside change (the stepper then compares
+    // the Context's positions with its state and keeps the state while they are unchanged).
+    if (&context->getIntegrator() != this)
+        positionsVersion++;
     // Barostats, thermostats etc. could change the state; then cached velocities are stale.
     if (context->updateContextState())
         kernel.getAs<IntegrateRPYStepKernel>().invalidateCache();

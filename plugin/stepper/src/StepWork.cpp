@@ -49,6 +49,7 @@ void StepWork::reject(double next, double error, const char* tail) {
 }
 
 double StepWork::errorRatio(const StateVector& err, double tolerance) {
-    const double norm = backend.maxBeadNorm(err);
-    return std::isfinite(norm) ? norm / tolerance : std::numeric_limits<double>::infinity();
+    const RPYBackend::TryCheck check = backend.checkTry(err, *y1);
+    y1NonFinite = check.nonFinite;
+    return std::isfinite(check.errorNorm) ? check.errorNorm / tolerance : std::numeric_limits<double>::infinity();
 }

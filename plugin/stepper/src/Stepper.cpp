@@ -26,15 +26,48 @@ void Stepper::invalidateCache() {
     rkc2.forgetSpectralRadius();  // as knotmm's RKC2.reset(): estimate again after outside changes
 }
 
+void Stepper::syncState(ContextImpl& context, const RPYIntegrator& integrator) {
+    RPYBackend& b = work.backend;
+    StateVector& y = *work.y;
+    const long long version = integrator.getPositionsVersion();
+    if (!haveState) {
+        // the first step, or a checkpoint of a layout without the state (versions 2-4): the
+        // Context's positions; the caches of such a checkpoint hold while they are exactly
+        // those they were computed at (as those layouts were written to continue)
+        b.getPositions(context, y);
+        if (work.k1.valid && !b.equal(y, *work.k1.positions))
+            invalidateCache();
+        if (fixed.held.valid && !b.equal(y, *fixed.held.positions))
+            fixed.held.valid = false;  // moved from outside: as knotmm's LeimkuhlerMatthews.reset()
+        haveState = true;
+    }
+    else if ((version != seenVersion || checkPositions) && !b.holds(context, y)) {
+        // set from outside to other positions: start from them, as knotmm's engines do
+        b.getPositions(context, y);
+        invalidateCache();
+        fixed.held.valid = false;
+    }
+    // (set from outside to the positions the stepper wrote, as knotmm's engine does between
+    // calls, and Context.loadCheckpoint: the state and the caches go on)
+    seenVersion = version;
+    checkPositions = false;
+}
+
+void Stepper::groupEnergies(ContextImpl& context, const RPYIntegrator& integrator, const std::vector<int>& groups,
+                            std::vector<double>& energies) {
+    syncState(context, integrator);
+    work.backend.groupEnergies(context, *work.y, groups, energies);
+}
+
 double Stepper::estimateSpectralRadius(ContextImpl& context, RPYIntegrator& integrator) {
-    // A fresh RKC2Control (its start vector, no earlier estimate), at the Context's
-    // positions; the counters, the cached velocity and the Context's positions are restored.
+    // A fresh RKC2Control (its start vector, no earlier estimate), at the state's positions;
+    // the counters, the cached velocity and the Context's positions are restored.
     RPYBackend& b = work.backend;
     work.context = &context;
     work.integrator = &integrator;
     b.applySettings(integrator);
     const StepCounts counted = work.counts;
-    b.getPositions(context, *work.y);
+    syncState(context, integrator);
     RKC2Control probe(b, integrator.getSpectralRadiusStartVector());
     VectorPtr f0 = b.createVector();
     double rho;
@@ -70,17 +103,15 @@ double Stepper::advance(ContextImpl& context, RPYIntegrator& integrator, double 
     work.t0 = t0;
     work.kT = integrator.getThermalEnergy();
     b.applySettings(integrator);
+    syncState(context, integrator);
     StateVector& y = *work.y;
-    b.getPositions(context, y);
-    // The cached velocity is valid while positions and parameters are exactly those it was
-    // computed at. (Checking them here, rather than trusting stateChanged(), keeps it across
-    // Context.loadCheckpoint, which restores both and then reports them as changed.)
-    if (work.k1.valid && (!b.equal(y, *work.k1.positions) || context.getParameters() != work.k1.parameters))
+    // The cached velocity is valid while the parameters are those it was computed at (the
+    // positions: syncState).
+    if (work.k1.valid && context.getParameters() != work.k1.parameters)
         invalidateCache();
-    if (fixed.held.valid && !b.equal(y, *fixed.held.positions))
-        fixed.held.valid = false;  // moved from outside: as knotmm's LeimkuhlerMatthews.reset()
     const double maxDt = std::isfinite(targetTime) ? targetTime - t0 : std::numeric_limits<double>::infinity();
     double h;
+    work.y1NonFinite = -2;
     try {
         if (work.method == RPYMethod::RK23)
             h = rk23.step(work, maxDt);
@@ -90,7 +121,8 @@ double Stepper::advance(ContextImpl& context, RPYIntegrator& integrator, double 
             h = brownian.step(work, maxDt);
         else
             h = fixed.step(work, std::min(integrator.getStepSize(), maxDt));
-        const int bad = b.firstNonFinite(*work.y1);
+        // an adaptive method checked its last try's y1 with the error estimate (one download)
+        const int bad = work.y1NonFinite != -2 ? work.y1NonFinite : b.firstNonFinite(*work.y1);
         if (bad >= 0)
             throw RPYStepFault(RPYStepFault::NonFinite,
                                std::string("RPYIntegrator (") + work.name() +
@@ -114,6 +146,7 @@ double Stepper::advance(ContextImpl& context, RPYIntegrator& integrator, double 
     b.setPositions(context, *work.y1);
     if (fixed.held.valid)
         b.copy(*fixed.held.positions, *work.y1);
+    work.y.swap(work.y1);  // the new state
     work.counts.accepted++;
     return h;
 }

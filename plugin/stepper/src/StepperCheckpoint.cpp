@@ -1,5 +1,7 @@
-// The stepper's checkpoint layout. Version 4 (ito_heun_adaptive's controller memory and
-// queued Wiener increments) is written; versions 3 (without them) and 2 (without
+// The stepper's checkpoint layout. Version 5 (the state the stepper keeps in double precision,
+// so a device run in mixed or single precision continues bit for bit) is written; versions 4
+// (without it: the next step starts from the Context's positions), 3 (without
+// ito_heun_adaptive's controller memory and queued Wiener increments) and 2 (without
 // leimkuhler_matthews's held kick either) still load. The order of the fields is the layout:
 // append only.
 
@@ -12,7 +14,7 @@ using namespace KnotMM;
 using namespace KnotMM::binary;
 
 namespace {
-const int CHECKPOINT_VERSION = 4;
+const int CHECKPOINT_VERSION = 5;
 
 void putState(std::ostream& stream, RPYBackend& b, bool have, const StateVector& v) {
     std::vector<double> host;
@@ -70,6 +72,8 @@ void Stepper::createCheckpoint(std::ostream& stream) const {
         put(stream, entry.first);
         putState(stream, b, true, *entry.second);
     }
+    put(stream, haveState);
+    putState(stream, b, haveState, *work.y);
 }
 
 void Stepper::loadCheckpoint(std::istream& stream) {
@@ -136,6 +140,13 @@ void Stepper::loadCheckpoint(std::istream& stream) {
             brownian.queue.pending.emplace_back(span, std::move(dw));
         }
     }
+    haveState = false;
+    if (version >= 5) {
+        bool have = false;
+        get(stream, have);
+        haveState = getState(stream, b, *work.y) && have;
+    }
+    checkPositions = true;  // the Context's positions, restored with it, are compared at the next step
     if (!stream)
         throw OpenMM::OpenMMException("RPYIntegrator: the checkpoint is truncated");
 }

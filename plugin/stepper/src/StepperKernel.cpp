@@ -20,6 +20,7 @@ void StepperKernel::initialize(const System& system, const RPYIntegrator& integr
     if (beads == 0)
         throw OpenMMException("RPYIntegrator: the System has no particles to move");
     stepper.reset();
+    owner = &integrator;
     backend = createBackend(system, integrator);
     stepper.reset(new Stepper(*backend, integrator));
     copies.reset();
@@ -38,7 +39,7 @@ double StepperKernel::execute(ContextImpl& context, RPYIntegrator& integrator, d
 
 void StepperKernel::computeGroupEnergies(ContextImpl& context, const std::vector<int>& groups,
                                          std::vector<double>& energies) {
-    backend->groupEnergies(context, groups, energies);
+    stepper->groupEnergies(context, *owner, groups, energies);
 }
 
 void StepperKernel::invalidateCache() { stepper->invalidateCache(); }

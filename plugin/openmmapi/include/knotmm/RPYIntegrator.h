@@ -134,6 +134,13 @@ public:
     int getLastStages() const;
     double getSpectralRadius() const;
     /**
+     * How many times the Context's positions were set from outside the integrator
+     * (Context.setPositions, setState: OpenMM's stateChanged(State::Positions)). The stepper
+     * keeps its state in double precision and reads the Context's positions again only when
+     * this number has changed (and they are no longer the ones it wrote).
+     */
+    long long getPositionsVersion() const { return positionsVersion; }
+    /**
      * The spectral radius of the velocity's Jacobian at the Context's positions, in 1/ps, as
      * rkc2 estimates it before its first step (power iteration from its start vector), for
      * any method; no step is taken and nothing else changes (knotmm's `auto` choice asks it
@@ -202,6 +209,8 @@ protected:
     bool kineticEnergyRequiresForce() const override { return false; }
     void createCheckpoint(std::ostream& stream) const override;
     void loadCheckpoint(std::istream& stream) override;
+    /** OpenMM's signal that the Context's state was set from outside (getPositionsVersion). */
+    void stateChanged(OpenMM::State::DataType changed) override;
 
 private:
     void checkInitialized() const;
@@ -217,6 +226,7 @@ private:
     std::vector<OpenMM::Vec3> rkcStart;
     OpenMM::Kernel kernel;
     bool kernelReady = false;
+    long long positionsVersion = 0;
 };
 
 } // namespace KnotMM

@@ -24,6 +24,12 @@ public:
     OpenMM::ComputeArray a;
 };
 
+/** The device array of a vector (kernels take arrays by non-const reference; inputs are never written). */
+inline OpenMM::ComputeArray& data(StateVector& v) { return static_cast<CommonVector&>(v).a; }
+inline OpenMM::ComputeArray& data(const StateVector& v) {
+    return const_cast<OpenMM::ComputeArray&>(static_cast<const CommonVector&>(v).a);
+}
+
 /**
  * RPYBackend over a ComputeContext. Vectors are ComputeArrays of 3n doubles (bead-major). The
  * Context's positions (posq, in mixed precision also posqCorrection) and forces (the 64-bit
@@ -33,17 +39,17 @@ public:
  * kernel per pattern of terms, compiled when first used); norms and tests are device
  * reductions with one small download each. Noise: normals drawn on the host from the
  * stepper's stream and uploaded; Cholesky on the host (the Reference backend's RPYMobility
- * matrix and choleskyLower), Lanczos with its Krylov loop on the host and each product mu v
- * on the device.
+ * matrix and choleskyLower); Lanczos with its Krylov loop on the device (src/CommonRPYNoise.cpp:
+ * products, dot products, Gram-Schmidt and norms there; alpha and beta downloaded together
+ * once per iteration for the small tridiagonal problem, LanczosSmallProblem, on the host).
  *
- * Precision (the device must support double precision). Double: the Context holds the state
- * exactly. Mixed: the state the steps start from is what the Context holds, a float plus a
- * float correction per number (about 48 bits), so equal() compares two vectors as the Context
- * would store them; checkpoints continue bit for bit. Single: the Context's float positions
- * are scratch; the backend keeps the positions it last wrote in double and starts the next
- * step from them while the Context's positions are still the ones it wrote (a device
- * comparison each step), else from the Context's (changed from outside: setPositions, a
- * loaded checkpoint, which therefore continues from float positions, not bit for bit).
+ * Precision (the device must support double precision). The stepper keeps the state in
+ * double on the device in every precision (Backend.h); the Context's positions are what it
+ * writes after a step (double: exactly; mixed: a float plus a float correction per number,
+ * about 48 bits; single: a float) and the scratch of each force evaluation (shifted to the
+ * centre of mass). holds() and equal() compare as the Context stores positions, so positions
+ * read back from the Context and set again count as unchanged; checkpoints hold the state and
+ * continue bit for bit in every precision.
  */
 class CommonRPYBackend : public RPYBackend {
 public:
@@ -53,8 +59,9 @@ public:
     void applySettings(const RPYIntegrator& integrator) override;
     void getPositions(OpenMM::ContextImpl& context, StateVector& y) override;
     void setPositions(OpenMM::ContextImpl& context, const StateVector& y) override;
+    bool holds(OpenMM::ContextImpl& context, const StateVector& y) override;
     void velocity(OpenMM::ContextImpl& context, const StateVector& y, StateVector& v) override;
-    void groupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
+    void groupEnergies(OpenMM::ContextImpl& context, const StateVector& at, const std::vector<int>& groups,
                        std::vector<double>& energies) override;
     void factorNoise(const StateVector& y) override;
     void applyNoise(double scale, const StateVector& z, StateVector& out) override;
@@ -66,36 +73,41 @@ public:
     double norm(const StateVector& v) override;
     double maxBeadNorm(const StateVector& v) override;
     int firstNonFinite(const StateVector& v) override;
+    TryCheck checkTry(const StateVector& err, const StateVector& y1) override;
     void download(const StateVector& v, std::vector<double>& host) override;
     void upload(const std::vector<double>& host, StateVector& v) override;
 
 private:
-    /** y = the positions the steps start from (getPositions). */
-    void readState(OpenMM::ComputeArray& y);
+    /** y = the Context's bead positions. */
+    void readPositions(OpenMM::ComputeArray& y);
+    /** The number of i with a_i != b_i, as the Context stores positions (countDifferent in kernels/rpy.cc). */
+    int countDifferent(OpenMM::ComputeArray& a, OpenMM::ComputeArray& b);
     /** The Context's bead positions = y, minus their centre of mass if `shift`; virtual sites placed. */
     void writePositions(OpenMM::ComputeArray& y, bool shift);
     /** out = mu(x) f on the device. */
     void mobilityTimes(OpenMM::ComputeArray& x, OpenMM::ComputeArray& f, OpenMM::ComputeArray& out);
     OpenMM::ComputeKernel& combineKernel(const std::string& pattern, int count);
+    /** out = scale mu(noiseAt)^(1/2) z by Lanczos on the device (CommonRPYNoise.cpp). */
+    void lanczosNoise(double scale, OpenMM::ComputeArray& z, OpenMM::ComputeArray& out);
 
     OpenMM::ComputeContext& cc;
     int n = 0, numAtoms = 0;
     bool hasVirtualSites = false, mixed = false, single = false;
-    bool haveShadow = false;  // single precision: shadow holds the positions posq was last written from
     double diameter, mu0;
     RPYMobility hostMobility;  // the dense matrix for Cholesky noise, on the host
     bool lanczos = false;
     double lanczosTolerance = 1e-6;
-    LanczosSqrt lanczosSqrt;
+    LanczosSmallProblem lanczosSmall;
+    OpenMM::ComputeArray basis, proj, lanczosScalars;  // Krylov vectors, projections, alpha and beta: at first use
     int tileSize, reduceSize;
     OpenMM::ComputeArray particleBead;                 // particle -> bead, -1 for a virtual site
-    OpenMM::ComputeArray com, forces, scalars, counts;  // 3, 3n, 2 doubles; 1 int
-    OpenMM::ComputeArray noiseAt, lanczosIn, lanczosOut, energyPosition;  // 3n doubles each
+    OpenMM::ComputeArray com, forces, scalars, counts;  // 3, 3n, 3 doubles; 1 int
+    OpenMM::ComputeArray noiseAt, lanczosV, lanczosW, energyPosition;  // 3n doubles each
     OpenMM::ComputeArray savedPosq, savedPosqCorrection, savedForces;    // groupEnergies
-    OpenMM::ComputeArray shadow, writtenPosq;                            // single precision
     OpenMM::ComputeKernel readPositionsKernel, writePositionsKernel, centreOfMassKernel, readForcesKernel,
         mobilityKernel, sumSquaresKernel, maxBeadSquareKernel, firstNonFiniteKernel, countDifferentKernel,
-        countChangedKernel;
+        checkTryKernel, lanczosDotsKernel, lanczosSubtractKernel, lanczosAlphaBetaKernel, lanczosScaleKernel,
+        lanczosCombineKernel;
     std::map<std::string, std::string> defines;
     std::map<std::string, OpenMM::ComputeKernel> combineKernels;  // by pattern of terms
     std::vector<double> host, hostOut, noiseAtHost, mat;           // host scratch

@@ -250,9 +250,9 @@ KERNEL void firstNonFinite(GLOBAL const double* RESTRICT v, GLOBAL int* RESTRICT
 
 /**
  * result[0] = the number of i with a_i != b_i, both taken as the Context stores positions:
- * in mixed precision a float and the float of the remainder (so a vector and its round trip
- * through posq count as equal); in double precision (and in single, where the backend keeps
- * the positions in double) the numbers themselves.
+ * in mixed precision a float and the float of the remainder, in single precision a float (so
+ * a vector and its round trip through posq count as equal); in double precision the numbers
+ * themselves.
  */
 KERNEL void countDifferent(GLOBAL const double* RESTRICT a, GLOBAL const double* RESTRICT b, GLOBAL int* RESTRICT result) {
     LOCAL int count[REDUCE_SIZE];
@@ -262,6 +262,9 @@ KERNEL void countDifferent(GLOBAL const double* RESTRICT a, GLOBAL const double*
         const float ha = (float) a[i], hb = (float) b[i];
         const float la = (float) (a[i]-(double) ha), lb = (float) (b[i]-(double) hb);
         if (ha != hb || la != lb)
+            c++;
+#elif defined(KNOTMM_SINGLE)
+        if ((float) a[i] != (float) b[i])
             c++;
 #else
         if (a[i] != b[i])
@@ -280,26 +283,124 @@ KERNEL void countDifferent(GLOBAL const double* RESTRICT a, GLOBAL const double*
 }
 
 /**
- * result[0] = the number of atoms whose posq entry differs from `saved` (a copy taken when
- * the backend last wrote the positions): nonzero when the Context's positions were changed
- * from outside since (single precision, where the backend keeps the positions in double).
+ * What the end of a try needs, in one download (one work group of REDUCE_SIZE):
+ * result[0] = max over beads of |err_b|^2, result[1] = the number of beads for which it is
+ * not finite (maxBeadSquare), result[2] = the smallest index i with y1_i not finite, or
+ * 3 NUM_BEADS (firstNonFinite).
  */
-KERNEL void countChangedPositions(GLOBAL const real4* RESTRICT posq, GLOBAL const real4* RESTRICT saved,
-        GLOBAL int* RESTRICT result) {
-    LOCAL int count[REDUCE_SIZE];
-    int c = 0;
-    for (int i = LOCAL_ID; i < NUM_ATOMS; i += LOCAL_SIZE) {
-        const real4 a = posq[i], b = saved[i];
-        if (a.x != b.x || a.y != b.y || a.z != b.z || a.w != b.w)
-            c++;
+KERNEL void checkTry(GLOBAL const double* RESTRICT err, GLOBAL const double* RESTRICT y1, GLOBAL double* RESTRICT result) {
+    LOCAL double worst[REDUCE_SIZE];
+    LOCAL double bad[REDUCE_SIZE];
+    LOCAL int first[REDUCE_SIZE];
+    double w = 0, nb = 0;
+    for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
+        const double s = err[3*b]*err[3*b]+err[3*b+1]*err[3*b+1]+err[3*b+2]*err[3*b+2];
+        if (notFinite(s))
+            nb += 1;
+        else
+            w = (s > w ? s : w);
     }
-    count[LOCAL_ID] = c;
+    int found = 3*NUM_BEADS;
+    for (int i = LOCAL_ID; i < 3*NUM_BEADS; i += LOCAL_SIZE)
+        if (notFinite(y1[i]) && i < found)
+            found = i;
+    worst[LOCAL_ID] = w;
+    bad[LOCAL_ID] = nb;
+    first[LOCAL_ID] = found;
+    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+        SYNC_THREADS;
+        if (LOCAL_ID < stride) {
+            worst[LOCAL_ID] = (worst[LOCAL_ID+stride] > worst[LOCAL_ID] ? worst[LOCAL_ID+stride] : worst[LOCAL_ID]);
+            bad[LOCAL_ID] += bad[LOCAL_ID+stride];
+            if (first[LOCAL_ID+stride] < first[LOCAL_ID])
+                first[LOCAL_ID] = first[LOCAL_ID+stride];
+        }
+    }
+    SYNC_THREADS;
+    if (LOCAL_ID == 0) {
+        result[0] = worst[0];
+        result[1] = bad[0];
+        result[2] = first[0];
+    }
+}
+
+// --- Lanczos noise (CommonRPYNoise.cpp): the Krylov vectors on the device --------------------
+// The basis V holds the Krylov vectors one after another, DIM = 3 NUM_BEADS numbers each.
+
+/** proj[offset+j] = V_j . w for j < count (one work group of REDUCE_SIZE per j). */
+KERNEL void lanczosDots(GLOBAL const double* RESTRICT basis, GLOBAL const double* RESTRICT w,
+        GLOBAL double* RESTRICT proj, int count, int offset) {
+    LOCAL double part[REDUCE_SIZE];
+    for (int j = GROUP_ID; j < count; j += NUM_GROUPS) {
+        GLOBAL const double* v = basis+(mm_long) j*(3*NUM_BEADS);
+        double s = 0;
+        for (int i = LOCAL_ID; i < 3*NUM_BEADS; i += LOCAL_SIZE)
+            s += v[i]*w[i];
+        part[LOCAL_ID] = s;
+        for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+            SYNC_THREADS;
+            if (LOCAL_ID < stride)
+                part[LOCAL_ID] += part[LOCAL_ID+stride];
+        }
+        SYNC_THREADS;
+        if (LOCAL_ID == 0)
+            proj[offset+j] = part[0];
+        SYNC_THREADS;
+    }
+}
+
+/** w -= sum_j proj[offset+j] V_j over j < count (the sum in the order of j). */
+KERNEL void lanczosSubtract(GLOBAL const double* RESTRICT basis, GLOBAL double* RESTRICT w,
+        GLOBAL const double* RESTRICT proj, int count, int offset) {
+    for (int i = GLOBAL_ID; i < 3*NUM_BEADS; i += GLOBAL_SIZE) {
+        double s = 0;
+        for (int j = 0; j < count; j++)
+            s += proj[offset+j]*basis[(mm_long) j*(3*NUM_BEADS)+i];
+        w[i] -= s;
+    }
+}
+
+/**
+ * result[0] = proj[k] (alpha_k, from the first Gram-Schmidt pass), result[1] = |w| (beta_k):
+ * the one download of an iteration (one work group of REDUCE_SIZE).
+ */
+KERNEL void lanczosAlphaBeta(GLOBAL const double* RESTRICT w, GLOBAL const double* RESTRICT proj, int k,
+        GLOBAL double* RESTRICT result) {
+    LOCAL double part[REDUCE_SIZE];
+    double s = 0;
+    for (int i = LOCAL_ID; i < 3*NUM_BEADS; i += LOCAL_SIZE)
+        s += w[i]*w[i];
+    part[LOCAL_ID] = s;
     for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
         SYNC_THREADS;
         if (LOCAL_ID < stride)
-            count[LOCAL_ID] += count[LOCAL_ID+stride];
+            part[LOCAL_ID] += part[LOCAL_ID+stride];
     }
     SYNC_THREADS;
-    if (LOCAL_ID == 0)
-        result[0] = count[0];
+    if (LOCAL_ID == 0) {
+        result[0] = proj[k];
+        result[1] = sqrt(part[0]);
+    }
+}
+
+/** V_k = v = w / c (c: |z| for the first vector, beta_(k-1) after; v: the product's input). */
+KERNEL void lanczosScale(GLOBAL const double* RESTRICT w, GLOBAL double* RESTRICT basis, int k, double c,
+        GLOBAL double* RESTRICT v) {
+    GLOBAL double* vk = basis+(mm_long) k*(3*NUM_BEADS);
+    for (int i = GLOBAL_ID; i < 3*NUM_BEADS; i += GLOBAL_SIZE) {
+        const double x = w[i]/c;
+        vk[i] = x;
+        v[i] = x;
+    }
+}
+
+/** out = sum_j coeff[j] V_j over j < count. */
+KERNEL void lanczosCombine(GLOBAL const double* RESTRICT basis, GLOBAL const double* RESTRICT coeff, int count,
+        GLOBAL double* RESTRICT out) {
+    for (int i = GLOBAL_ID; i < 3*NUM_BEADS; i += GLOBAL_SIZE) {
+        double s = 0;
+        for (int j = 0; j < count; j++)
+            s += coeff[j]*basis[(mm_long) j*(3*NUM_BEADS)+i];
+        out[i] = s;
+    }
 }

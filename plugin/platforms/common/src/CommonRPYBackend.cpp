@@ -19,15 +19,7 @@ using namespace KnotMM;
 using std::string;
 using std::vector;
 
-namespace {
-
-inline ComputeArray& data(StateVector& v) { return static_cast<CommonVector&>(v).a; }
-inline ComputeArray& data(const StateVector& v) {
-    // Kernels take arrays by non-const reference; the backend never writes an input.
-    return const_cast<ComputeArray&>(static_cast<const CommonVector&>(v).a);
-}
-
-} // namespace
+using KnotMM::data;
 
 CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, const RPYIntegrator& integrator)
     : cc(cc), diameter(integrator.getBeadDiameter()), mu0(integrator.getMobility()),
@@ -52,9 +44,9 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     particleBead.initialize<int>(cc, beadOf.size(), "rpyParticleBead");
     particleBead.upload(beadOf);
     com.initialize<double>(cc, 3, "rpyCentreOfMass");
-    scalars.initialize<double>(cc, 2, "rpyScalars");
+    scalars.initialize<double>(cc, 3, "rpyScalars");
     counts.initialize<int>(cc, 1, "rpyCounts");
-    for (ComputeArray* a : {&forces, &noiseAt, &lanczosIn, &lanczosOut, &energyPosition})
+    for (ComputeArray* a : {&forces, &noiseAt, &lanczosV, &lanczosW, &energyPosition})
         a->initialize<double>(cc, 3 * n, "rpyVector");
 
     defines["NUM_BEADS"] = cc.intToString(n);
@@ -62,6 +54,8 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     defines["PADDED_NUM_ATOMS"] = cc.intToString(cc.getPaddedNumAtoms());
     defines["TILE"] = cc.intToString(tileSize);
     defines["REDUCE_SIZE"] = cc.intToString(reduceSize);
+    if (single)
+        defines["KNOTMM_SINGLE"] = "1";
     ComputeProgram program = cc.compileProgram(CommonRPYKernelSources::rpy, defines);
     readPositionsKernel = program->createKernel("readPositions");
     writePositionsKernel = program->createKernel("writePositions");
@@ -72,10 +66,16 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     maxBeadSquareKernel = program->createKernel("maxBeadSquare");
     firstNonFiniteKernel = program->createKernel("firstNonFinite");
     countDifferentKernel = program->createKernel("countDifferent");
-    countChangedKernel = program->createKernel("countChangedPositions");
+    checkTryKernel = program->createKernel("checkTry");
+    lanczosDotsKernel = program->createKernel("lanczosDots");
+    lanczosSubtractKernel = program->createKernel("lanczosSubtract");
+    lanczosAlphaBetaKernel = program->createKernel("lanczosAlphaBeta");
+    lanczosScaleKernel = program->createKernel("lanczosScale");
+    lanczosCombineKernel = program->createKernel("lanczosCombine");
     // the pair loop and the reductions run in work groups of exactly TILE and REDUCE_SIZE items
     for (ComputeKernel* k : {&mobilityKernel, &sumSquaresKernel, &maxBeadSquareKernel, &firstNonFiniteKernel,
-                             &countDifferentKernel, &countChangedKernel, &centreOfMassKernel})
+                             &countDifferentKernel, &centreOfMassKernel, &checkTryKernel, &lanczosDotsKernel,
+                             &lanczosAlphaBetaKernel})
         if ((*k)->getMaxBlockSize() < (k == &mobilityKernel ? tileSize : reduceSize))
             throw OpenMMException("RPYIntegrator: the device runs kernel " + (*k)->getName() + " in work groups of at most " +
                                   std::to_string((*k)->getMaxBlockSize()) + " items, fewer than it needs");
@@ -102,7 +102,7 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     readForcesKernel->addArg(forces);
     mobilityKernel->addArg(noiseAt);  // x, f, v: set per call
     mobilityKernel->addArg(forces);
-    mobilityKernel->addArg(lanczosOut);
+    mobilityKernel->addArg(lanczosW);
     mobilityKernel->addArg(diameter);
     mobilityKernel->addArg(mu0);
     sumSquaresKernel->addArg(forces);  // set per call
@@ -114,13 +114,29 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     countDifferentKernel->addArg(forces);  // a, b: set per call
     countDifferentKernel->addArg(forces);
     countDifferentKernel->addArg(counts);
-    if (single) {
-        shadow.initialize<double>(cc, 3 * n, "rpyShadowPositions");
-        writtenPosq.initialize(cc, cc.getPosq().getSize(), cc.getPosq().getElementSize(), "rpyWrittenPosq");
-        countChangedKernel->addArg(cc.getPosq());
-        countChangedKernel->addArg(writtenPosq);
-        countChangedKernel->addArg(counts);
+    // Lanczos (CommonRPYNoise.cpp): every argument set at each use
+    for (ComputeKernel* k : {&lanczosDotsKernel, &lanczosSubtractKernel}) {
+        for (int i = 0; i < 3; i++)
+            (*k)->addArg(forces);
+        (*k)->addArg(0);
+        (*k)->addArg(0);
     }
+    lanczosAlphaBetaKernel->addArg(forces);
+    lanczosAlphaBetaKernel->addArg(forces);
+    lanczosAlphaBetaKernel->addArg(0);
+    lanczosAlphaBetaKernel->addArg(forces);
+    lanczosScaleKernel->addArg(forces);
+    lanczosScaleKernel->addArg(forces);
+    lanczosScaleKernel->addArg(0);
+    lanczosScaleKernel->addArg(1.0);
+    lanczosScaleKernel->addArg(forces);
+    lanczosCombineKernel->addArg(forces);
+    lanczosCombineKernel->addArg(forces);
+    lanczosCombineKernel->addArg(0);
+    lanczosCombineKernel->addArg(forces);
+    checkTryKernel->addArg(forces);  // err, y1: set per call
+    checkTryKernel->addArg(forces);
+    checkTryKernel->addArg(scalars);
     applySettings(integrator);
 }
 
@@ -138,22 +154,16 @@ void CommonRPYBackend::applySettings(const RPYIntegrator& integrator) {
 
 // --- the Context -------------------------------------------------------------------------------
 
-void CommonRPYBackend::getPositions(ContextImpl&, StateVector& y) { readState(data(y)); }
+void CommonRPYBackend::getPositions(ContextImpl&, StateVector& y) { readPositions(data(y)); }
 
-void CommonRPYBackend::readState(ComputeArray& y) {
-    if (single && haveShadow) {
-        // the positions in double, unless the Context's have been changed since they were written
-        countChangedKernel->execute(reduceSize, reduceSize);
-        int changed = 0;
-        counts.download(&changed);
-        if (changed == 0) {
-            shadow.copyTo(y);
-            return;
-        }
-        haveShadow = false;
-    }
+void CommonRPYBackend::readPositions(ComputeArray& y) {
     readPositionsKernel->setArg(mixed ? 4 : 3, y);
     readPositionsKernel->execute(numAtoms);
+}
+
+bool CommonRPYBackend::holds(ContextImpl&, const StateVector& y) {
+    readPositions(energyPosition);
+    return countDifferent(energyPosition, data(y)) == 0;
 }
 
 void CommonRPYBackend::writePositions(ComputeArray& y, bool shift) {
@@ -167,13 +177,6 @@ void CommonRPYBackend::writePositions(ComputeArray& y, bool shift) {
     writePositionsKernel->execute(numAtoms);
     if (hasVirtualSites)
         cc.getIntegrationUtilities().computeVirtualSites();
-    if (single && !shift) {
-        // the Context now holds floats of y: keep y, and what was written, to recognise it
-        // (a shifted write is scratch for a force evaluation; the comparison sees it too)
-        y.copyTo(shadow);
-        cc.getPosq().copyTo(writtenPosq);
-        haveShadow = true;
-    }
 }
 
 void CommonRPYBackend::setPositions(ContextImpl&, const StateVector& y) { writePositions(data(y), false); }
@@ -194,7 +197,8 @@ void CommonRPYBackend::velocity(ContextImpl& context, const StateVector& y, Stat
     mobilityTimes(data(y), forces, data(v));
 }
 
-void CommonRPYBackend::groupEnergies(ContextImpl& context, const vector<int>& groups, vector<double>& energies) {
+void CommonRPYBackend::groupEnergies(ContextImpl& context, const StateVector& at, const vector<int>& groups,
+                                     vector<double>& energies) {
     // As the Reference backend: at the positions the steps evaluate forces at, one energy-only
     // evaluation per group, then the Context's positions and forces exactly as they were.
     ArrayInterface& posq = cc.getPosq();
@@ -220,8 +224,7 @@ void CommonRPYBackend::groupEnergies(ContextImpl& context, const vector<int>& gr
     };
     energies.assign(groups.size(), 0.0);
     try {
-        readState(energyPosition);
-        writePositions(energyPosition, true);
+        writePositions(data(at), true);
         for (size_t i = 0; i < groups.size(); i++)
             energies[i] = context.calcForcesAndEnergy(false, true, 1 << groups[i]);
     }
@@ -230,54 +233,6 @@ void CommonRPYBackend::groupEnergies(ContextImpl& context, const vector<int>& gr
         throw;
     }
     restore();
-}
-
-// --- noise -------------------------------------------------------------------------------------
-
-void CommonRPYBackend::factorNoise(const StateVector& y) {
-    if (lanczos) {
-        data(y).copyTo(noiseAt);  // matrix-free: applyNoise runs the Krylov iteration at noiseAt
-        return;
-    }
-    // exact: the dense Cholesky factor of the 3n x 3n mobility, on the host
-    data(y).download(host);
-    noiseAtHost.resize(3 * n);
-    for (int b = 0; b < n; b++)
-        for (int k = 0; k < 3; k++)
-            noiseAtHost[k * n + b] = host[3 * b + k];
-    hostMobility.lowerMatrix(n, noiseAtHost.data(), mat);
-    if (!choleskyLower(mat, 3 * n))
-        throw RPYStepFault(RPYStepFault::NotPositiveDefinite,
-                           "RPYIntegrator: the RPY mobility is not positive definite at these "
-                           "positions (two beads at the same point?)");
-}
-
-void CommonRPYBackend::applyNoise(double scale, const StateVector& z, StateVector& out) {
-    data(z).download(host);
-    hostOut.resize(3 * n);
-    if (!lanczos) {
-        lowerTimes(mat, 3 * n, host.data(), scale, hostOut.data());
-        data(out).upload(hostOut);
-        return;
-    }
-    // B z = mu^(1/2) z by Lanczos: the Krylov loop here, each product mu v on the device
-    lanczosSqrt.compute(
-        [&](const double* v, double* w) {
-            lanczosIn.upload(v);
-            mobilityTimes(noiseAt, lanczosIn, lanczosOut);
-            lanczosOut.download(w);
-        },
-        3 * n, host.data(), lanczosTolerance, hostOut.data());
-    for (double& x : hostOut)
-        x *= scale;
-    data(out).upload(hostOut);
-}
-
-void CommonRPYBackend::normals(NoiseStream& stream, StateVector& out) {
-    host.resize(3 * n);
-    for (double& x : host)
-        x = stream.normal();
-    data(out).upload(host);
 }
 
 // --- vector operations ---------------------------------------------------------------------------
@@ -330,19 +285,21 @@ void CommonRPYBackend::copy(StateVector& out, const StateVector& in) { data(in).
 
 void CommonRPYBackend::setZero(StateVector& out) { cc.clearBuffer(data(out)); }
 
-bool CommonRPYBackend::equal(const StateVector& a, const StateVector& b) {
-    countDifferentKernel->setArg(0, data(a));
-    countDifferentKernel->setArg(1, data(b));
+int CommonRPYBackend::countDifferent(ComputeArray& a, ComputeArray& b) {
+    countDifferentKernel->setArg(0, a);
+    countDifferentKernel->setArg(1, b);
     countDifferentKernel->execute(reduceSize, reduceSize);
     int different = 0;
     counts.download(&different);
-    return different == 0;
+    return different;
 }
+
+bool CommonRPYBackend::equal(const StateVector& a, const StateVector& b) { return countDifferent(data(a), data(b)) == 0; }
 
 double CommonRPYBackend::norm(const StateVector& v) {
     sumSquaresKernel->setArg(0, data(v));
     sumSquaresKernel->execute(reduceSize, reduceSize);
-    double result[2];
+    double result[3];  // scalars holds 3
     scalars.download(result);
     return std::sqrt(result[0]);
 }
@@ -350,7 +307,7 @@ double CommonRPYBackend::norm(const StateVector& v) {
 double CommonRPYBackend::maxBeadNorm(const StateVector& v) {
     maxBeadSquareKernel->setArg(0, data(v));
     maxBeadSquareKernel->execute(reduceSize, reduceSize);
-    double result[2];
+    double result[3];  // scalars holds 3
     scalars.download(result);
     return result[1] == 0.0 ? std::sqrt(result[0]) : std::numeric_limits<double>::infinity();
 }
@@ -361,6 +318,17 @@ int CommonRPYBackend::firstNonFinite(const StateVector& v) {
     int first = 0;
     counts.download(&first);
     return first < 3 * n ? first : -1;
+}
+
+RPYBackend::TryCheck CommonRPYBackend::checkTry(const StateVector& err, const StateVector& y1) {
+    checkTryKernel->setArg(0, data(err));
+    checkTryKernel->setArg(1, data(y1));
+    checkTryKernel->execute(reduceSize, reduceSize);
+    double result[3];
+    scalars.download(result);  // the one download of a try
+    const int first = (int) result[2];
+    return TryCheck{result[1] == 0.0 ? std::sqrt(result[0]) : std::numeric_limits<double>::infinity(),
+                    first < 3 * n ? first : -1};
 }
 
 void CommonRPYBackend::download(const StateVector& v, vector<double>& out) { data(v).download(out); }

@@ -92,6 +92,34 @@ unsigned long long getTridiagonalEigenRoutine();
 const int LANCZOS_MAX_ITER = 200;
 
 /**
+ * The small problem of a Lanczos iteration, on the host for every platform: after iteration
+ * k (alpha[0..k] = v_j . mu v_j, beta[0..k] the norms of the orthogonalised residuals), the
+ * coefficients of y_k = |z| V_k T_k^(1/2) e_1 in the basis (coeff, from tridiagonalEigen) and
+ * the stopping rule of LanczosSqrt. A device backend runs the Krylov vectors on the device and
+ * this here.
+ */
+class LanczosSmallProblem {
+public:
+    /** Start an iteration of at most m steps. */
+    void reset(int m);
+    /**
+     * After iteration k (alpha[k], beta[k] set) of vectors of `dim` numbers, z of norm normZ:
+     * coeff[0..k]; returns the number of basis vectors of the result when converged
+     * (|y_k - y_(k-1)| <= tolerance |y_k|) or exact (invariant subspace, or k + 1 = dim), 0
+     * to go on (then v_(k+1) = w / beta[k]).
+     */
+    int update(int k, int dim, double normZ, double tolerance);
+    /** Throws RPYStepFault (LanczosNotConverged) after m iterations without convergence. */
+    [[noreturn]] void notConverged(int m, double tolerance) const;
+    std::vector<double> alpha, beta, coeff;
+
+private:
+    std::vector<double> values, vectors, coeffOld;
+    double change = 0.0;
+    bool haveOld = false;
+};
+
+/**
  * Krylov approximation of mu^(1/2) z, matrix-free (knotmm.dynamics.noise.lanczos_sqrt):
  * Lanczos with full reorthogonalisation (classical Gram-Schmidt, twice) builds V_k and the
  * tridiagonal T_k = V_k^T mu V_k; the iterate is y_k = |z| V_k T_k^(1/2) e_1, T_k^(1/2) from
@@ -118,7 +146,8 @@ public:
     int compute(const MatrixTimes& times, int dim, const double* z, double tolerance, double* out,
                 int maxIter = LANCZOS_MAX_ITER);
 private:
-    std::vector<double> basis, alpha, beta, w, proj, values, vectors, coeff, coeffOld;
+    std::vector<double> basis, w, proj;
+    LanczosSmallProblem small;
 };
 
 } // namespace KnotMM

@@ -37,8 +37,9 @@ public:
     void applySettings(const RPYIntegrator& integrator) override;
     void getPositions(OpenMM::ContextImpl& context, StateVector& y) override;
     void setPositions(OpenMM::ContextImpl& context, const StateVector& y) override;
+    bool holds(OpenMM::ContextImpl& context, const StateVector& y) override;
     void velocity(OpenMM::ContextImpl& context, const StateVector& y, StateVector& v) override;
-    void groupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
+    void groupEnergies(OpenMM::ContextImpl& context, const StateVector& at, const std::vector<int>& groups,
                        std::vector<double>& energies) override;
     void factorNoise(const StateVector& y) override;
     void applyNoise(double scale, const StateVector& z, StateVector& out) override;
@@ -50,6 +51,9 @@ public:
     double norm(const StateVector& v) override;
     double maxBeadNorm(const StateVector& v) override;
     int firstNonFinite(const StateVector& v) override;
+    TryCheck checkTry(const StateVector& err, const StateVector& y1) override {
+        return TryCheck{maxBeadNorm(err), firstNonFinite(y1)};
+    }
     void download(const StateVector& v, std::vector<double>& host) override;
     void upload(const std::vector<double>& host, StateVector& v) override;
 

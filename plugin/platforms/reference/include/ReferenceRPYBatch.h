@@ -47,8 +47,9 @@ public:
         : ReferenceRPYBackend(numBeads, integrator), batch(batch), copy(copy) {}
     void getPositions(OpenMM::ContextImpl& context, StateVector& y) override;
     void setPositions(OpenMM::ContextImpl& context, const StateVector& y) override;
+    bool holds(OpenMM::ContextImpl& context, const StateVector& y) override;
     void velocity(OpenMM::ContextImpl& context, const StateVector& y, StateVector& v) override;
-    void groupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
+    void groupEnergies(OpenMM::ContextImpl& context, const StateVector& at, const std::vector<int>& groups,
                        std::vector<double>& energies) override;
     /** Cholesky with the batch's threads: factorised by them beside the other copies' work; else as alone. */
     void factorNoise(const StateVector& y) override;

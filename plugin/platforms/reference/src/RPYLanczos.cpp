@@ -57,6 +57,56 @@ int LanczosSqrt::compute(const RPYMobility& mobility, int n, const double* x, co
                    out, maxIter);
 }
 
+void LanczosSmallProblem::reset(int m) {
+    alpha.assign(m, 0.0);
+    beta.assign(m, 0.0);
+    coeff.assign(m, 0.0);
+    coeffOld.assign(m, 0.0);
+    change = std::numeric_limits<double>::infinity();
+    haveOld = false;
+}
+
+int LanczosSmallProblem::update(int k, int dim, double normZ, double tolerance) {
+    // coefficients of the iterate in the basis: T^(1/2) e_1 = Q sqrt(Lambda) Q^T e_1
+    const int size = k + 1;
+    if (!tridiagonalEigen(alpha, beta, size, values, vectors))
+        throw OpenMM::OpenMMException("Lanczos: the tridiagonal eigen-decomposition failed");
+    double normC = 0.0, diff = 0.0;
+    for (int i = 0; i < size; i++) {
+        double c = 0.0;
+        for (int j = 0; j < size; j++)
+            c += vectors[(size_t) j * size + i] * std::sqrt(std::max(values[j], 0.0)) * vectors[(size_t) j * size];
+        coeff[i] = c;
+        normC += c * c;
+        const double dc = c - (i < k ? coeffOld[i] : 0.0);
+        diff += dc * dc;
+    }
+    // |y_k| and |y_k - y_(k-1)| from the coefficients (the basis is orthonormal)
+    const double normY = normZ * std::sqrt(normC);
+    if (haveOld) {
+        change = normZ * std::sqrt(diff) / std::max(normY, 1e-300);
+        if (change <= tolerance)
+            return size;
+    }
+    double scale = 0.0;
+    for (int i = 0; i < size; i++)
+        scale = std::max(scale, std::fabs(alpha[i]));
+    if (beta[k] <= 1e-13 * scale || size == dim)
+        return size;  // invariant subspace: exact
+    std::copy(coeff.begin(), coeff.begin() + size, coeffOld.begin());
+    haveOld = true;
+    return 0;
+}
+
+void LanczosSmallProblem::notConverged(int m, double tolerance) const {
+    std::ostringstream msg;
+    msg.precision(3);
+    msg << "run.lanczos_tolerance = " << tolerance << " not reached: relative change " << change << " after " << m
+        << " Lanczos iterations; raise run.lanczos_tolerance or use "
+        << "run.noise = \"cholesky\"";
+    throw RPYStepFault(RPYStepFault::LanczosNotConverged, msg.str());
+}
+
 int LanczosSqrt::compute(const MatrixTimes& times, int dim, const double* z, double tolerance, double* out,
                          int maxIter) {
     double normZ = 0.0;
@@ -73,16 +123,13 @@ int LanczosSqrt::compute(const MatrixTimes& times, int dim, const double* z, dou
     if (m < 1)
         throw OpenMM::OpenMMException("Lanczos: the iteration limit must be >= 1");
     basis.resize((size_t) m * dim);
-    alpha.assign(m, 0.0);
-    beta.assign(m, 0.0);
+    small.reset(m);
+    std::vector<double>& alpha = small.alpha;
+    std::vector<double>& beta = small.beta;
     w.resize(dim);
     proj.resize(m);
-    coeff.assign(m, 0.0);
-    coeffOld.assign(m, 0.0);
     for (int i = 0; i < dim; i++)
         basis[i] = z[i] / normZ;
-    double change = std::numeric_limits<double>::infinity();
-    bool haveOld = false;
     int used = 0;
     for (int k = 0; k < m && used == 0; k++) {
         const double* vk = &basis[(size_t) k * dim];
@@ -120,55 +167,18 @@ int LanczosSqrt::compute(const MatrixTimes& times, int dim, const double* z, dou
         for (int i = 0; i < dim; i++)
             b += w[i] * w[i];
         beta[k] = std::sqrt(b);
-        // coefficients of the iterate in the basis: T^(1/2) e_1 = Q sqrt(Lambda) Q^T e_1
-        const int size = k + 1;
-        if (!tridiagonalEigen(alpha, beta, size, values, vectors))
-            throw OpenMM::OpenMMException("Lanczos: the tridiagonal eigen-decomposition failed");
-        double normC = 0.0, diff = 0.0;
-        for (int i = 0; i < size; i++) {
-            double c = 0.0;
-            for (int j = 0; j < size; j++)
-                c += vectors[(size_t) j * size + i] * std::sqrt(std::max(values[j], 0.0)) * vectors[(size_t) j * size];
-            coeff[i] = c;
-            normC += c * c;
-            const double dc = c - (i < k ? coeffOld[i] : 0.0);
-            diff += dc * dc;
-        }
-        // |y_k| and |y_k - y_(k-1)| from the coefficients (the basis is orthonormal)
-        const double normY = normZ * std::sqrt(normC);
-        if (haveOld) {
-            change = normZ * std::sqrt(diff) / std::max(normY, 1e-300);
-            if (change <= tolerance) {
-                used = size;
-                break;
-            }
-        }
-        double scale = 0.0;
-        for (int i = 0; i < size; i++)
-            scale = std::max(scale, std::fabs(alpha[i]));
-        if (beta[k] <= 1e-13 * scale || size == dim) {
-            used = size;  // invariant subspace: exact
-            break;
-        }
-        std::copy(coeff.begin(), coeff.begin() + size, coeffOld.begin());
-        haveOld = true;
-        if (size < m) {
-            double* vnext = &basis[(size_t) size * dim];
+        used = small.update(k, dim, normZ, tolerance);
+        if (used == 0 && k + 1 < m) {
+            double* vnext = &basis[(size_t) (k + 1) * dim];
             for (int i = 0; i < dim; i++)
                 vnext[i] = w[i] / beta[k];
         }
     }
-    if (used == 0) {
-        std::ostringstream msg;
-        msg.precision(3);
-        msg << "run.lanczos_tolerance = " << tolerance << " not reached: relative change " << change
-            << " after " << m << " Lanczos iterations; raise run.lanczos_tolerance or use "
-            << "run.noise = \"cholesky\"";
-        throw RPYStepFault(RPYStepFault::LanczosNotConverged, msg.str());
-    }
+    if (used == 0)
+        small.notConverged(m, tolerance);
     std::fill(out, out + dim, 0.0);
     for (int j = 0; j < used; j++) {
-        const double c = normZ * coeff[j];
+        const double c = normZ * small.coeff[j];
         const double* vj = &basis[(size_t) j * dim];
         for (int i = 0; i < dim; i++)
             out[i] += c * vj[i];

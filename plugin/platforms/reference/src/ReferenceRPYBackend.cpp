@@ -91,6 +91,16 @@ void ReferenceRPYBackend::setPositions(ContextImpl& context, const StateVector& 
     writePositions(context, data(y), false);
 }
 
+bool ReferenceRPYBackend::holds(ContextImpl& context, const StateVector& y) {
+    const vector<Vec3>& pos = *platformData(context).positions;
+    const vector<double>& in = data(y);
+    for (int b = 0; b < n; b++)
+        for (int k = 0; k < 3; k++)
+            if (pos[beadParticle[b]][k] != in[3 * b + k])
+                return false;
+    return true;
+}
+
 void ReferenceRPYBackend::velocity(ContextImpl& context, const StateVector& y, StateVector& v) {
     writePositions(context, data(y), true);
     context.calcForcesAndEnergy(true, false, context.getIntegrator().getIntegrationForceGroups());
@@ -118,18 +128,17 @@ void ReferenceRPYBackend::mobilityTimes(const vector<double>& yy, const vector<V
             out[3 * b + k] = vs[k * n + b];
 }
 
-void ReferenceRPYBackend::groupEnergies(ContextImpl& context, const vector<int>& groups, vector<double>& energies) {
+void ReferenceRPYBackend::groupEnergies(ContextImpl& context, const StateVector& at, const vector<int>& groups,
+                                        vector<double>& energies) {
     // At the positions the steps evaluate forces at (writePositions with the shift, bit for
     // bit), one energy-only evaluation per group, then the Context exactly as it was.
     ReferencePlatform::PlatformData& platform = platformData(context);
     const vector<Vec3> savedPositions = *platform.positions;
     const vector<Vec3> savedForces = *platform.forces;
     const int savedGroups = context.getLastForceGroups();
-    ReferenceVector at(3 * n);
-    getPositions(context, at);
     energies.assign(groups.size(), 0.0);
     try {
-        writePositions(context, at.a, true);
+        writePositions(context, data(at), true);
         for (size_t i = 0; i < groups.size(); i++)
             energies[i] = context.calcForcesAndEnergy(false, true, 1 << groups[i]);
     }

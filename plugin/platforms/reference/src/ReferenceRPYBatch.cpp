@@ -57,6 +57,8 @@ void CopyBackend::getPositions(ContextImpl&, StateVector& y) { data(y) = batch.c
 
 void CopyBackend::setPositions(ContextImpl&, const StateVector& y) { batch.copies[copy]->positions = data(y); }
 
+bool CopyBackend::holds(ContextImpl&, const StateVector& y) { return data(y) == batch.copies[copy]->positions; }
+
 void CopyBackend::velocity(ContextImpl&, const StateVector& y, StateVector& v) {
     ReferenceRPYBatch::Copy& c = *batch.copies[copy];
     batch.waitForForces(c, data(y));  // forces and mu F made by the batch
@@ -79,7 +81,7 @@ void CopyBackend::factorJob(const vector<double>& y) {
     ReferenceRPYBackend::factorNoise(at);
 }
 
-void CopyBackend::groupEnergies(ContextImpl&, const vector<int>&, vector<double>&) {
+void CopyBackend::groupEnergies(ContextImpl&, const StateVector&, const vector<int>&, vector<double>&) {
     throw OpenMMException("RPYIntegrator: the energies of one copy of a batch are not available; "
                           "evaluate them on a Context of that copy alone");
 }
@@ -159,6 +161,7 @@ ReferenceRPYBatch::~ReferenceRPYBatch() {}
 void ReferenceRPYBatch::setPositions(int copy, const vector<double>& positions) {
     copies[copy]->positions = positions;
     copies[copy]->placed = true;
+    copies[copy]->stepper->positionsChanged();
 }
 
 void ReferenceRPYBatch::createCheckpoint(int copy, std::ostream& stream) const {
@@ -357,6 +360,7 @@ bool ReferenceRPYBatch::stepTo(ContextImpl& contextRef, RPYIntegrator& integrato
                     c.positions[3 * b + i] = contextPositions[beadParticle[k * n + b]][i];
             c.time = contextRef.getTime();
             c.placed = true;
+            c.stepper->positionsChanged();
         }
         const double h = c.settings->getStepSize();
         copySettings(integrator, *c.settings);

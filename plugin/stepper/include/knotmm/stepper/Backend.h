@@ -52,10 +52,21 @@ public:
     virtual void applySettings(const RPYIntegrator& integrator) = 0;
 
     // --- the Context ---------------------------------------------------------------------
+    // The stepper owns the state y in double precision (its own vector); the Context's
+    // positions are what it writes after each step (setPositions) and the scratch of each
+    // force evaluation (velocity). It reads them back (getPositions) only at the start and
+    // when they were set from outside (RPYIntegrator::getPositionsVersion) to something else
+    // than what it wrote (holds).
     /** y = the beads' positions in the Context. */
     virtual void getPositions(OpenMM::ContextImpl& context, StateVector& y) = 0;
     /** The Context's bead positions = y (virtual sites placed from them). */
     virtual void setPositions(OpenMM::ContextImpl& context, const StateVector& y) = 0;
+    /**
+     * True when the Context's bead positions are what setPositions(y) leaves there: y itself
+     * in double precision, y rounded as the Context stores it otherwise (mixed: a float and
+     * the float of the remainder; single: a float).
+     */
+    virtual bool holds(OpenMM::ContextImpl& context, const StateVector& y) = 0;
     /**
      * v = mu(y) F, F the Context's forces (the integration force groups) with the beads at y
      * shifted to their centre of mass: translation leaves internal forces as they are and
@@ -64,10 +75,10 @@ public:
      */
     virtual void velocity(OpenMM::ContextImpl& context, const StateVector& y, StateVector& v) = 0;
     /**
-     * Energy of each force group in `groups` with the beads shifted as velocity() shifts them;
-     * the Context is left exactly as it was (positions, forces, last force groups).
+     * Energy of each force group in `groups` with the beads at `at` shifted as velocity()
+     * shifts them; the Context is left exactly as it was (positions, forces, last force groups).
      */
-    virtual void groupEnergies(OpenMM::ContextImpl& context, const std::vector<int>& groups,
+    virtual void groupEnergies(OpenMM::ContextImpl& context, const StateVector& at, const std::vector<int>& groups,
                                std::vector<double>& energies) = 0;
 
     // --- noise ---------------------------------------------------------------------------
@@ -93,7 +104,7 @@ public:
     virtual void combine(StateVector& out, std::initializer_list<Term> terms) = 0;
     virtual void copy(StateVector& out, const StateVector& in) = 0;
     virtual void setZero(StateVector& out) = 0;
-    /** Element by element ==. */
+    /** Element by element ==, both taken as the Context stores positions (see holds). */
     virtual bool equal(const StateVector& a, const StateVector& b) = 0;
     /** sqrt(sum_i v_i^2). */
     virtual double norm(const StateVector& v) = 0;
@@ -101,6 +112,13 @@ public:
     virtual double maxBeadNorm(const StateVector& v) = 0;
     /** The index of the first number that is not finite, or -1. */
     virtual int firstNonFinite(const StateVector& v) = 0;
+    /** What the end of an adaptive method's try needs on the host (checkTry). */
+    struct TryCheck {
+        double errorNorm;  // maxBeadNorm(err)
+        int nonFinite;     // firstNonFinite(y1)
+    };
+    /** maxBeadNorm(err) and firstNonFinite(y1) together: one download on a device. */
+    virtual TryCheck checkTry(const StateVector& err, const StateVector& y1) = 0;
     /** To and from the host (checkpoints, start vectors): 3n numbers, bead-major. */
     virtual void download(const StateVector& v, std::vector<double>& host) = 0;
     virtual void upload(const std::vector<double>& host, StateVector& v) = 0;

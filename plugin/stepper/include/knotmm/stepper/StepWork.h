@@ -45,8 +45,13 @@ public:
     void keepVelocity(const StateVector& at);
     /** out = scale B(at) xi, xi fresh normals; scale == 0 gives zeros and draws nothing. */
     void noiseSample(const StateVector& at, double scale, StateVector& out);
-    /** Largest per-bead norm of `err` over `tolerance`; +infinity if anything is not finite. */
+    /**
+     * Largest per-bead norm of `err` over `tolerance`; +infinity if anything is not finite.
+     * Checks y1 for non-finite numbers in the same call (y1NonFinite): call it after y1 is made.
+     */
     double errorRatio(const StateVector& err, double tolerance);
+    /** firstNonFinite(y1) as the last errorRatio found it; -2: not checked in this step. */
+    int y1NonFinite = -2;
     /**
      * An adaptive method's rejected try: count it and set the next step to `next` (ps); below
      * the integrator's minimum step, throw RPYStepFault (StepUnderflow) with the error ratio

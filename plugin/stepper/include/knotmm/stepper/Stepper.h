@@ -34,6 +34,15 @@ public:
     double advance(OpenMM::ContextImpl& context, RPYIntegrator& integrator, double t0, double targetTime);
     /** Forget cached velocities (the state was changed from outside). */
     void invalidateCache();
+    /**
+     * The positions the state is kept for (the Context's, or a copy's) may have been set from
+     * outside: the next step checks them (a copy's setPositions; a Context signals it through
+     * RPYIntegrator::getPositionsVersion).
+     */
+    void positionsChanged() { checkPositions = true; }
+    /** Energies of `groups` at the state (RPYBackend::groupEnergies). */
+    void groupEnergies(OpenMM::ContextImpl& context, const RPYIntegrator& integrator, const std::vector<int>& groups,
+                       std::vector<double>& energies);
     /** Everything that decides the next steps, so a restored run repeats bit for bit. */
     void createCheckpoint(std::ostream& stream) const;
     void loadCheckpoint(std::istream& stream);
@@ -44,6 +53,15 @@ public:
     double estimateSpectralRadius(OpenMM::ContextImpl& context, RPYIntegrator& integrator);
 
 private:
+    /**
+     * work.y = the state the next step starts from: the one the stepper keeps (in double,
+     * whatever the platform's precision), unless the positions were set from outside to
+     * something else than what it last wrote; then the Context's, and the caches are dropped.
+     */
+    void syncState(OpenMM::ContextImpl& context, const RPYIntegrator& integrator);
+    bool haveState = false;       // work.y holds the state (after a first step or a checkpoint)
+    bool checkPositions = false;  // compare the Context's positions with work.y at the next step
+    long long seenVersion = 0;    // the integrator's positions version work.y was checked against
     StepWork work;
     FixedSteps fixed;
     RK23Control rk23;

@@ -43,6 +43,7 @@ protected:
     virtual std::unique_ptr<RPYCopies> createCopies(const OpenMM::System& system, const RPYIntegrator& integrator);
 
 private:
+    const RPYIntegrator* owner = nullptr;  // the integrator initialize() was given
     std::unique_ptr<RPYBackend> backend;
     std::unique_ptr<Stepper> stepper;
     std::unique_ptr<RPYCopies> copies;
