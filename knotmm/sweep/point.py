@@ -8,6 +8,7 @@ the point's ``status`` and ``error``.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
 import os
@@ -95,15 +96,22 @@ def run_point(task: Mapping[str, Any]) -> dict[str, Any]:
     """
     if "members" in task:
         return run_group(task)
+    with _computing():
+        return _run_point(task)
+
+
+@contextlib.contextmanager
+def _computing():
+    """A point (or a group of them) is being computed: :class:`WorkerState` says so, and
+    the runs' warnings (a change of knot type, ...), which are in their run.toml and
+    analysis.json, are not printed (a sweep of many points would print them interleaved)."""
     WorkerState.running = True
-    # the run's warnings (a change of knot type, ...) are in its run.toml and analysis.json;
-    # a sweep of many points would otherwise print them all, interleaved
     knotmm_log = logging.getLogger("knotmm")
     level = knotmm_log.level
     if knotmm_log.getEffectiveLevel() < logging.ERROR:
         knotmm_log.setLevel(logging.ERROR)
     try:
-        return _run_point(task)
+        yield
     finally:
         knotmm_log.setLevel(level)
         WorkerState.running = False
@@ -201,26 +209,19 @@ def run_group(task: Mapping[str, Any]) -> dict[str, Any]:
 
     members = list(task["members"])
     outcomes: list[tuple[str, str | None] | None] = [None] * len(members)
-    WorkerState.running = True
-    knotmm_log = logging.getLogger("knotmm")
-    level = knotmm_log.level
-    if knotmm_log.getEffectiveLevel() < logging.ERROR:
-        knotmm_log.setLevel(logging.ERROR)
-    try:
-        def body(k, copies):
-            outcomes[k] = _simulate(members[k], copies)
-            if outcomes[k] is None:
-                request_stop()  # the other replicas stop at their next step too
 
+    def body(k, copies):
+        outcomes[k] = _simulate(members[k], copies)
+        if outcomes[k] is None:
+            request_stop()  # the other replicas stop at their next step too
+
+    with _computing():
         failures = run_together(len(members), body)
         shown = [k for k, m in enumerate(members) if m.get("action") != "skip"]
         if failures or any(o is None for o in outcomes):
             results = [_interrupted_quietly(members[k]["name"]) for k in shown]
         else:
             results = [_analyse(members[k], *outcomes[k]) for k in shown]
-    finally:
-        knotmm_log.setLevel(level)
-        WorkerState.running = False
     if any(r["status"] == "pending" for r in results) and WorkerState.stopping:
         leave()
     status = "pending" if any(r["status"] == "pending" for r in results) else "finished"

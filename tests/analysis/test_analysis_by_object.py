@@ -20,6 +20,7 @@ import math
 import numpy as np
 import pytest
 from reference_model import rpy_dense
+from same_values import assert_same_values
 from synthetic import vortex_knot_positions, write_run_directory
 
 import knotmm.analysis.core as core
@@ -79,20 +80,7 @@ def three_chain_run():
     return RunData.from_arrays(x, DT, config=config, bonds=bonds_of(layout)), layout, entries
 
 
-def _same(a, b, path="") -> None:
-    """Equal analysis.json values: floats to 1e-12, the rest exactly."""
-    if isinstance(a, dict):
-        assert a.keys() == b.keys(), path
-        for k in a:
-            _same(a[k], b[k], f"{path}.{k}")
-    elif isinstance(a, list):
-        assert len(a) == len(b), path
-        for k, (u, v) in enumerate(zip(a, b, strict=True)):
-            _same(u, v, f"{path}[{k}]")
-    elif isinstance(a, float):
-        assert b == pytest.approx(a, rel=1e-12, abs=1e-14), path
-    else:
-        assert a == b, path
+_same = assert_same_values
 
 
 @pytest.fixture(scope="module")

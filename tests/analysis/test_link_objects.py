@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from same_values import assert_same_values
 from synthetic import vortex_knot_positions, write_run_directory
 
 from knotmm.analysis.core import analyze, analyze_run
@@ -60,20 +61,7 @@ def link_and_trefoil(record: bool = True) -> RunData:
     return RunData.from_arrays(x, DT, config=config, bonds=layout.bonds())
 
 
-def _same(a, b, path="") -> None:
-    """Equal analysis.json values: floats to 1e-12, the rest exactly."""
-    if isinstance(a, dict):
-        assert a.keys() == b.keys(), path
-        for k in a:
-            _same(a[k], b[k], f"{path}.{k}")
-    elif isinstance(a, list):
-        assert len(a) == len(b), path
-        for k, (u, v) in enumerate(zip(a, b, strict=True)):
-            _same(u, v, f"{path}[{k}]")
-    elif isinstance(a, float):
-        assert b == pytest.approx(a, rel=1e-12, abs=1e-14), path
-    else:
-        assert a == b, path
+_same = assert_same_values
 
 
 @pytest.mark.parametrize("record", [True, False], ids=["run.toml's record", "linking number"])

@@ -9,6 +9,7 @@ import re
 import matplotlib
 import numpy as np
 import pytest
+from saved_figures import saved_figures
 
 matplotlib.use("Agg")
 
@@ -78,15 +79,7 @@ def test_every_drawn_segment_is_a_bond_of_the_layout(system):
 
 def test_written_snapshot_figure_draws_only_bonds(system, tmp_path):
     lengths, closed, result = system
-    captured = []
-    original = Figure.savefig
-
-    def keep(fig, *args, **kwargs):
-        captured.append(fig)
-        return original(fig, *args, **kwargs)
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(Figure, "savefig", keep)
+    with saved_figures() as captured:
         save_plots(result, tmp_path)
     snapshot = captured[-1]
     frame = (result.window.start + result.window.stop) // 2

@@ -10,6 +10,7 @@ import math
 import matplotlib
 import numpy as np
 import pytest
+from saved_figures import saved_figures
 
 matplotlib.use("Agg")
 
@@ -57,15 +58,7 @@ def ring():
 
 def _saved_figure(result, tmp_path) -> Figure:
     """The time-series figure exactly as ``save_plots`` writes it (the first one saved)."""
-    captured = []
-    original = Figure.savefig
-
-    def keep(fig, *args, **kwargs):
-        captured.append(fig)
-        return original(fig, *args, **kwargs)
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(Figure, "savefig", keep)
+    with saved_figures() as captured:
         save_plots(result, tmp_path)
     fig = captured[0]
     FigureCanvasAgg(fig)

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import matplotlib
 import pytest
+from saved_figures import saved_figures
 
 matplotlib.use("Agg")
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
 
 HERE = Path(__file__).resolve()
 EXAMPLE = HERE.parents[2] / "examples" / "orbit_stability"
@@ -37,15 +37,7 @@ def drawn(replot, tmp_path_factory):
     for path in (EXAMPLE / "results").iterdir():
         if path.suffix in (".csv", ".json"):
             shutil.copy(path, results / path.name)
-    captured = []
-    original = Figure.savefig
-
-    def keep(fig, *args, **kwargs):
-        captured.append(fig)
-        return original(fig, *args, **kwargs)
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(Figure, "savefig", keep)
+    with saved_figures() as captured:
         assert replot.main(["--results", str(results)]) == 0
     assert all((results / name).stat().st_size > 10_000 for name in FIGURES)
     for fig in captured:
