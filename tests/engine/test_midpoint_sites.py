@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from engine_platforms import ENGINE_PLATFORMS, placement
 
 from knotmm.dynamics.deterministic import Heun
 from knotmm.engine.simulation import Simulation
@@ -65,12 +66,12 @@ def two_rings(rng) -> np.ndarray:
     return x + rng.normal(scale=0.01, size=x.shape)
 
 
-@pytest.mark.parametrize("engine", ENGINES)
-def test_an_open_filament_with_sites_runs(engine, rng):
+@pytest.mark.parametrize(("engine", "platform"), ENGINE_PLATFORMS)
+def test_an_open_filament_with_sites_runs(engine, platform, rng):
     chains = [(8, False)]
     layout = ChainLayout((8,), (False,))
     sim = Simulation(open_rod(8, rng), ChainModel(segment_repulsion=True), Heun(0.01),
-                     platform="Reference", engine=engine, layout=layout)
+                     engine=engine, layout=layout, **placement(platform))
     assert sim.system.getNumParticles() == 8 + 7
     assert_sites_are_midpoints(sim, chains)
     sim.run(0.2)
@@ -80,13 +81,13 @@ def test_an_open_filament_with_sites_runs(engine, rng):
     assert np.isfinite(sim.energies()["steric"])
 
 
-@pytest.mark.parametrize("engine", ENGINES)
-def test_sites_of_two_rings_after_sync(engine, rng):
+@pytest.mark.parametrize(("engine", "platform"), ENGINE_PLATFORMS)
+def test_sites_of_two_rings_after_sync(engine, platform, rng):
     """The sites of the second ring sat on the first ring's beads (site 19 was 10 d off)."""
     chains = [(10, True), (10, True)]
     layout = ChainLayout((10, 10))
     sim = Simulation(two_rings(rng), ChainModel(segment_repulsion=True), Heun(0.01),
-                     platform="Reference", engine=engine, layout=layout)
+                     engine=engine, layout=layout, **placement(platform))
     assert_sites_are_midpoints(sim, chains)
     sim.run(0.05)
     sim.sync_context()

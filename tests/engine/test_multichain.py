@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import reference_model as rm
+from engine_platforms import ENGINE_PLATFORMS, placement, trajectory_tolerance
 
 from knotmm.dynamics.deterministic import Euler, Heun
 from knotmm.engine.simulation import Simulation
@@ -69,13 +70,13 @@ def test_energies_and_forces_per_term_match_the_naive_model(rng):
     assert want_e["steric"] > 0  # the contacts between chains are felt
 
 
-@pytest.mark.parametrize("engine", ["python", pytest.param("plugin", marks=needs_plugin)])
-def test_velocities_are_naive_rpy_times_the_forces_of_all_chains(rng, engine):
+@pytest.mark.parametrize(("engine", "platform"), ENGINE_PLATFORMS)
+def test_velocities_are_naive_rpy_times_the_forces_of_all_chains(rng, engine, platform):
     x = three_chains(rng)
     want = rm.rpy_velocities(x, rm.forces(x, CHAINS)["total"])
     h = 1e-7
-    sim = Simulation(x, platform="Reference", engine=engine, integrator=Euler(h),
-                     layout=LAYOUT, max_bond_length=100.0)
+    sim = Simulation(x, engine=engine, integrator=Euler(h), layout=LAYOUT,
+                     max_bond_length=100.0, **placement(platform))
     if engine == "python":
         got = sim.velocity(x)
     else:  # one Euler step under the plugin: displacement / h (forces change by O(h))
@@ -126,15 +127,17 @@ def naive_four_tau_d():
     return x, naive_heun(x, 0.01, 400, CHAINS)
 
 
-@pytest.mark.parametrize("engine", ["python", pytest.param("plugin", marks=needs_plugin)])
+@pytest.mark.parametrize(("engine", "platform"), ENGINE_PLATFORMS)
 def test_four_tau_d_of_two_rings_and_a_rod_follow_a_naive_heun_integration(
-        naive_four_tau_d, engine):
+        naive_four_tau_d, engine, platform):
     x, want = naive_four_tau_d
     h, steps = 0.01, 400
-    sim = Simulation(x, platform="Reference", engine=engine, integrator=Heun(h), layout=LAYOUT)
+    sim = Simulation(x, engine=engine, integrator=Heun(h), layout=LAYOUT, **placement(platform))
+    assert (sim.engine, sim.platform_name) == (engine, platform)
     sim.step(steps)
     assert sim.time == pytest.approx(4.0)
-    np.testing.assert_allclose(sim.positions, want, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(sim.positions, want, rtol=0,
+                               atol=trajectory_tolerance(platform))
     assert np.abs(want - x).max() > 1.0  # it fell and moved: not a trivial comparison
 
 
