@@ -16,13 +16,6 @@ from knotmm.dynamics.deterministic import Heun
 from knotmm.engine.simulation import Simulation
 from knotmm.model.layout import ChainLayout
 from knotmm.model.system import ChainModel
-from knotmm.plugin import available as plugin_available
-
-ENGINES = [
-    "python",
-    pytest.param("plugin", marks=pytest.mark.skipif(not plugin_available(),
-                                                    reason="plugin not built")),
-]
 
 
 def naive_bonds(chains) -> list[tuple[int, int]]:

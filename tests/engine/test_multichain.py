@@ -14,11 +14,9 @@ from knotmm.dynamics.deterministic import Euler, Heun
 from knotmm.engine.simulation import Simulation
 from knotmm.model.layout import ChainLayout
 from knotmm.model.system import FORCE_GROUPS, ChainModel, chain_system
-from knotmm.plugin import available as plugin_available
 
 CHAINS = [(12, True), (10, True), (8, False)]
 LAYOUT = ChainLayout(tuple(n for n, _ in CHAINS), tuple(c for _, c in CHAINS))
-needs_plugin = pytest.mark.skipif(not plugin_available(), reason="plugin not built")
 
 
 def three_chains(rng) -> np.ndarray:
