@@ -43,6 +43,7 @@
 //      properties steps the ring as the Reference platform does (1e-4 d); after loadCheckpoint
 //      it continues bit for bit (the checkpoint holds the state in double).
 
+#include "TestSystems.h"
 #include "TestUtilities.h"
 #include "knotmm/RPYStepFault.h"
 
@@ -55,8 +56,6 @@ using namespace knotmm_test;
 
 namespace {
 
-typedef std::vector<Vec3> Vecs;
-const double PI = 3.14159265358979323846;
 
 /** Deterministic uniform numbers in [lo, hi) (a 64-bit LCG: the test needs no library RNG). */
 struct Uniform {
@@ -67,23 +66,6 @@ struct Uniform {
         return lo + (hi - lo) * ((state >> 11) * (1.0 / 9007199254740992.0));
     }
 };
-
-/**
- * x rounded to single precision. Through a volatile: GCC 12.2 at -O2 drops a plain (float) cast
- * in `v.push_back(Vec3((float) a, (float) b, c))` inside a loop (seen while writing this test).
- */
-double singleRounded(double x) {
-    volatile float f = (float) x;
-    return f;
-}
-
-double maxDeviation(const Vecs& a, const Vecs& b, const Vec3& offset = Vec3()) {
-    double worst = 0.0;
-    for (size_t i = 0; i < a.size(); i++)
-        for (int k = 0; k < 3; k++)
-            worst = std::max(worst, std::fabs(a[i][k] - offset[k] - b[i][k]));
-    return worst;
-}
 
 /** The tolerance for the platform's precision ("OpenCL:double", ":mixed", ":single"). */
 double byPrecision(const std::string& platform, double dbl, double mixed, double single) {
@@ -144,36 +126,6 @@ void velocityAgainstNaive(const std::string& platform, int n) {
 }
 
 // --- 2. rk23 / rkc2 on a ring against the Reference platform -------------------------------------
-
-System* ringSystem(int n, Vecs& start, double offset = 0.0, bool open = false) {
-    System* system = new System();
-    HarmonicBondForce* bonds = new HarmonicBondForce();
-    HarmonicAngleForce* angles = new HarmonicAngleForce();
-    CustomExternalForce* gravity = new CustomExternalForce("g*z");
-    gravity->addGlobalParameter("g", 1.0);
-    const double radius = 0.6 / (2.0 * std::sin(PI / n));
-    for (int i = 0; i < n; i++) {
-        system->addParticle(1.0);
-        gravity->addParticle(i, {});
-        const double a = 2.0 * PI * i / n;
-        const double r = radius * (1.0 + 0.05 * std::cos(3 * a));
-        start.push_back(Vec3(offset + r * std::cos(a), -offset + r * std::sin(a), offset + 0.3 * std::cos(2 * a)));
-    }
-    // OpenMM's device platforms keep bonded parameters in single precision: give both platforms
-    // the same numbers (0.6 and pi rounded to float)
-    const int bondCount = open ? n - 1 : n;
-    for (int i = 0; i < bondCount; i++)
-        bonds->addBond(i, (i + 1) % n, singleRounded(0.6), 50.0);
-    for (int i = 0; i < (open ? n - 2 : n); i++)
-        angles->addAngle(i, (i + 1) % n, (i + 2) % n, singleRounded(PI), 2.0);
-    bonds->setForceGroup(0);
-    angles->setForceGroup(1);
-    gravity->setForceGroup(2);
-    system->addForce(bonds);
-    system->addForce(angles);
-    system->addForce(gravity);
-    return system;
-}
 
 struct RunResult {
     Vecs x;

@@ -22,6 +22,7 @@
 //      with mixed precision's correction). Measured on pocl while writing this test: 3e-11 d
 //      in mixed precision (5.2e-7 d when the state was read back from the Context each step).
 
+#include "TestSystems.h"
 #include "TestUtilities.h"
 
 #include <memory>
@@ -32,52 +33,12 @@ using namespace knotmm_test;
 
 namespace {
 
-typedef std::vector<Vec3> Vecs;
-const double PI = 3.14159265358979323846;
-
-double singleRounded(double x) {
-    volatile float f = (float) x;  // see TestRPYDevice.cpp: through a volatile
-    return f;
-}
-
-/** An open chain of n beads (bonds 0.6, bending, gravity) around (offset, -offset, offset). */
-System* chainSystem(int n, Vecs& start, double offset) {
-    System* system = new System();
-    HarmonicBondForce* bonds = new HarmonicBondForce();
-    HarmonicAngleForce* angles = new HarmonicAngleForce();
-    CustomExternalForce* gravity = new CustomExternalForce("g*z");
-    gravity->addGlobalParameter("g", 1.0);
-    const double radius = 0.6 / (2.0 * std::sin(PI / n));
-    for (int i = 0; i < n; i++) {
-        system->addParticle(1.0);
-        gravity->addParticle(i, {});
-        const double a = 2.0 * PI * i / n;
-        const double r = radius * (1.0 + 0.05 * std::cos(3 * a));
-        start.push_back(Vec3(offset + r * std::cos(a), -offset + r * std::sin(a), offset + 0.3 * std::cos(2 * a)));
-    }
-    for (int i = 0; i < n - 1; i++)
-        bonds->addBond(i, i + 1, singleRounded(0.6), 50.0);
-    for (int i = 0; i < n - 2; i++)
-        angles->addAngle(i, i + 1, i + 2, singleRounded(PI), 2.0);
-    system->addForce(bonds);
-    system->addForce(angles);
-    system->addForce(gravity);
-    return system;
-}
-
-double maxDeviation(const Vecs& a, const Vecs& b, const Vec3& offset = Vec3()) {
-    double worst = 0.0;
-    for (size_t i = 0; i < a.size(); i++)
-        for (int k = 0; k < 3; k++)
-            worst = std::max(worst, std::fabs(a[i][k] - offset[k] - b[i][k]));
-    return worst;
-}
 
 // --- 1. positions set from outside ---------------------------------------------------------------
 
 void outsideChangeHonoured(const std::string& platform, bool throughState) {
     Vecs start;
-    std::unique_ptr<System> system(chainSystem(20, start, 0.0));
+    std::unique_ptr<System> system(ringSystem(20, start, 0.0, true));
     Vecs moved = start;
     for (size_t i = 0; i < moved.size(); i++)
         moved[i] = Vec3(start[i][1] + 0.5, -start[i][0], start[i][2] + 0.1 * std::sin(1.0 * i));
@@ -118,7 +79,7 @@ void outsideChangeHonoured(const std::string& platform, bool throughState) {
  */
 void compoundIntegrator(const std::string& platform) {
     Vecs start;
-    std::unique_ptr<System> system(chainSystem(20, start, 0.0));
+    std::unique_ptr<System> system(ringSystem(20, start, 0.0, true));
     CompoundIntegrator compound;
     KnotMM::RPYIntegrator* integ = new KnotMM::RPYIntegrator(0.001, "rk23", 1e-4);
     CustomIntegrator* shift = new CustomIntegrator(0.001);
@@ -165,7 +126,7 @@ Run tenSteps(const std::string& platform, System& system, const Vecs& start, int
 
 void setBackChangesNothing(const std::string& platform) {
     Vecs start;
-    std::unique_ptr<System> system(chainSystem(20, start, 1e4));
+    std::unique_ptr<System> system(ringSystem(20, start, 1e4, true));
     const Run plain = tenSteps(platform, *system, start, 10);
     const Run paused = tenSteps(platform, *system, start, 5);
     std::printf("  %-14s 1e4 d away: 10 steps = 5 steps, positions read back and set, 5 steps\n", platform.c_str());
@@ -177,7 +138,7 @@ void setBackChangesNothing(const std::string& platform) {
 
 void checkpointBitForBit(const std::string& platform, const std::string& method) {
     Vecs start;
-    std::unique_ptr<System> system(chainSystem(20, start, 1e4));
+    std::unique_ptr<System> system(ringSystem(20, start, 1e4, true));
     KnotMM::RPYIntegrator integ(0.001, method, 1e-5);
     integ.setThermalEnergy(method == "rk23" ? 0.0 : 0.5);
     integ.setRandomNumberSeed(11);
@@ -202,7 +163,7 @@ void checkpointBitForBit(const std::string& platform, const std::string& method)
 void farFromOrigin(const std::string& platform) {
     const double offset = 1e4;
     Vecs near, far;
-    std::unique_ptr<System> a(chainSystem(20, near, 0.0)), b(chainSystem(20, far, offset));
+    std::unique_ptr<System> a(ringSystem(20, near, 0.0, true)), b(ringSystem(20, far, offset, true));
     Vecs result[2];
     long long accepted[2];
     for (int which = 0; which < 2; which++) {

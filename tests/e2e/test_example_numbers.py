@@ -12,6 +12,7 @@ import re
 from pathlib import Path
 
 import pytest
+from example_scripts import load_script
 
 from knotmm.analysis.core import analyze_run
 from knotmm.config import RunConfig, read_toml
@@ -66,11 +67,7 @@ def test_filament_pairs_single_rods_depth_is_the_readmes(tmp_path):
     """examples/filament_pairs: one rod at B = 0.96 and 9.6 hangs 0.0172 and 0.1719 d deep
     (README, section 1); the example's own function, rerun as the script runs it (400 tau_d,
     a frame every tau_d; a few seconds), must give the README's digits."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("run_pairs", PAIRS / "run_pairs.py")
-    pairs = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(pairs)
+    pairs = load_script(PAIRS / "run_pairs.py")
     readme = (PAIRS / "README.md").read_text()
     for a, b in ((5000.0, "0.96"), (500.0, "9.6")):
         row = re.search(rf"\| {a:g} \| {b} \| ([\d.]+) \|", readme)

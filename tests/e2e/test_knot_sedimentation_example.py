@@ -1,12 +1,12 @@
 """examples/knot_sedimentation/make_figure.py: error propagation, the fit, the table."""
 
 import csv
-import importlib.util
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from example_scripts import load_script
 
 SCRIPT = (Path(__file__).resolve().parents[2] / "examples" / "knot_sedimentation"
           / "make_figure.py")
@@ -14,10 +14,7 @@ SCRIPT = (Path(__file__).resolve().parents[2] / "examples" / "knot_sedimentation
 
 @pytest.fixture(scope="module")
 def mf():
-    spec = importlib.util.spec_from_file_location("make_figure", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(SCRIPT)
 
 
 def test_ratio_error_is_quadrature_of_relative_errors(mf):

@@ -2,12 +2,12 @@
 and results/laws.csv as the script makes it from the saved sets."""
 
 import csv
-import importlib.util
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+from example_scripts import load_script
 from scipy import stats
 
 FOLDER = Path(__file__).resolve().parents[2] / "examples" / "knot_sedimentation"
@@ -15,10 +15,7 @@ FOLDER = Path(__file__).resolve().parents[2] / "examples" / "knot_sedimentation"
 
 @pytest.fixture(scope="module")
 def fl():
-    spec = importlib.util.spec_from_file_location("fit_laws", FOLDER / "fit_laws.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(FOLDER / "fit_laws.py")
 
 
 def test_exact_line_gives_zero_chi2_and_its_slope(fl):

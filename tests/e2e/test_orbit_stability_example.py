@@ -4,13 +4,13 @@ results (issue 35: continuation.png was stale, with raw key names as axis labels
 from __future__ import annotations
 
 import csv
-import importlib.util
 import shutil
 import sys
 from pathlib import Path
 
 import matplotlib
 import pytest
+from example_scripts import load_script
 from saved_figures import saved_figures
 
 matplotlib.use("Agg")
@@ -24,10 +24,7 @@ FIGURES = ("continuation.png", "beads_continuation.png", "exponent_vs_N.png")
 
 @pytest.fixture(scope="module")
 def replot():
-    spec = importlib.util.spec_from_file_location("replot", EXAMPLE / "replot.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(EXAMPLE / "replot.py")
 
 
 @pytest.fixture(scope="module")

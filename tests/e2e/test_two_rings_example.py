@@ -9,18 +9,16 @@ fail; the example is then rerun and its README updated.
 
 from __future__ import annotations
 
-import importlib.util
 import re
 from pathlib import Path
+
+from example_scripts import load_script
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "two_rings"
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("run_two_rings", EXAMPLE / "run_two_rings.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(EXAMPLE / "run_two_rings.py")
 
 
 def test_two_rings_rigid_limit_and_stiff_start_are_the_readmes(tmp_path):
