@@ -14,6 +14,7 @@
 #include "knotmm/RPYMethods.h"
 #include "knotmm/RPYStepFault.h"
 #include "RPYMobility.h"
+#include "knotmm/stepper/Philox.h"
 using OpenMM::Vec3;  // OpenMM's typemaps name it unqualified
 
 extern "C" void registerRPYKernelFactories();
@@ -107,6 +108,20 @@ static PyObject* methodTable() {
 }
 
 static double landingSlack(double target) { return KnotMM::landingSlack(target); }
+
+// The `count` normals of draw `draw` of a run seeded with `seed` (its noise stream's key), as the
+// stepper makes them on every platform (stepper/Philox.h). A numpy array; for tests.
+static PyObject* counterNormals(unsigned long long seed, unsigned long long draw, int count) {
+    if (count < 0) {
+        PyErr_SetString(PyExc_ValueError, "count: expected a number >= 0");
+        return NULL;
+    }
+    npy_intp dims[1] = {count};
+    PyObject* out = PyArray_SimpleNew(1, dims, NPY_DOUBLE);
+    if (out != NULL)
+        KnotMM::philox::normals(seed, draw, (double*) PyArray_DATA((PyArrayObject*) out), count);
+    return out;
+}
 
 // Raise knotmm.plugin.rpyplugin.StepFault (defined in this module's Python part) for a fault;
 // falls back to openmm.OpenMMException if that class cannot be found.
@@ -207,6 +222,7 @@ extern "C" void registerRPYKernelFactories();
 static const char* builtAgainstOpenMMVersion();
 static PyObject* methodTable();
 static double landingSlack(double target);
+static PyObject* counterNormals(unsigned long long seed, unsigned long long draw, int count);
 static PyObject* choleskyFactor(PyObject* matrix, bool builtin);
 static PyObject* lanczosSqrt(PyObject* positions, PyObject* z, double tolerance, double diameter,
                              double mobility);

@@ -24,7 +24,8 @@
 //      backend v2, mixed precision was 5.2e-7 d off).
 //   4. Brownian: euler_maruyama, fixed step 1e-3, kT = 1, seed 1234, Cholesky noise, the ring:
 //      the first 20 steps equal the Reference platform's to 1e-9 d (double; mixed 1e-6 d): the
-//      normals come from the same host stream, the Cholesky factor from the same host code.
+//      normals are the counter-based stream's (made on the device there, on the host here),
+//      the Cholesky factor from the same host code.
 //   5. A virtual site (the midpoint of beads 0 and 2, particle 1 of 4, with a force of its own)
 //      is placed by OpenMM, is not a bead, and hands its force to the beads: rk23 to 0.5 tau_d
 //      against the Reference platform (1e-8 d double, 1e-5 d mixed), the site at the midpoint.

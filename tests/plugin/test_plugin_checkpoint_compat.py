@@ -9,10 +9,14 @@ build before backend v2, which added the state in double as layout 5; generated 
 development machine with the earlier build): rk23 and leimkuhler_matthews on Reference,
 ito_heun_adaptive with Lanczos noise and segment sites on CPU (one thread), rk23 and
 ito_heun_adaptive in mixed precision on OpenCL (skipped where the plugin has no OpenCL
-kernel). A layout-4 checkpoint has no state: the next step starts from the Context's
-positions and keeps the cached velocity and held kick while they are those they were
-computed at. The layout is read field by field, so a field read out of place would load a wrong
-cached velocity, step-size memory, noise stream or held kick, and the run would go elsewhere.
+kernel). ``data/checkpoints_v5.npz`` holds the same for stepper layout 5 (the state in double,
+before the counter-based noise of layout 6; written by that build with the cases above and
+euler_maruyama on Reference and on OpenCL in double precision): a Brownian run resumed from
+it continues with the sequential noise stream it was drawing from. A layout-4 checkpoint has no
+state: the next step starts from the Context's positions and keeps the cached velocity and
+held kick while they are those they were computed at. The layout is read field by field, so a
+field read out of place would load a wrong cached velocity, step-size memory, noise stream or
+held kick, and the run would go elsewhere.
 
 A Context checkpoint also holds OpenMM's own state, which only the OpenMM version that wrote it
 reads: the test is skipped under another version. On the same machine the trajectories were
@@ -40,8 +44,9 @@ from knotmm.shapes.geometry import torus_knot
 
 DATA = Path(__file__).parent / "data"
 #: Stepper layout -> the file of checkpoints written by a build that wrote that layout.
-FILES = {3: DATA / "checkpoints_v3.npz", 4: DATA / "checkpoints_v4.npz"}
-_data = {layout: np.load(path) for layout, path in FILES.items()}
+FILES = {3: DATA / "checkpoints_v3.npz", 4: DATA / "checkpoints_v4.npz",
+         5: DATA / "checkpoints_v5.npz"}
+_data = {layout: np.load(path, allow_pickle=layout < 5) for layout, path in FILES.items()}
 
 
 def _params():

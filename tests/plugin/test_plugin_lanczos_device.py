@@ -8,7 +8,7 @@ here), in double and mixed precision; skipped with the reason where there is non
   ``tests/reference_model.py`` (``rpy_dense``, double loops). Each entry within 5 standard
   errors ``sqrt((mu_ii mu_jj + mu_ij^2) / S)`` of the sample covariance. Six beads, some
   overlapping (r < d).
-- The normals come from the stepper's host stream on every platform, so 20 Lanczos
+- The normals are the stepper's counter-based stream's on every platform, so 20 Lanczos
   ``euler_maruyama`` steps of a ring of 40 agree with the Reference platform's host Lanczos
   (LanczosSqrt) to 1e-7 d: both stop at relative change 1e-8 and differ in the order of their
   sums and in the Gram-Schmidt passes.

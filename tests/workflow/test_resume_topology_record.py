@@ -41,7 +41,7 @@ RECORD = (
 #: The audit's cfg/kchange.toml, shortened: the trefoil unties at t = 5 tau_d (plugin).
 KCHANGE = {
     "knot": {"beads": 30},
-    "run": {"duration": 8.0, "peclet": 1.0, "seed": 3, "topology_check_interval": 1.0},
+    "run": {"duration": 8.0, "peclet": 1.0, "seed": 11, "topology_check_interval": 1.0},
     "output": {"frame_interval": 0.5, "checkpoint_interval": 1.0},
 }
 

@@ -1,5 +1,8 @@
 #include "knotmm/stepper/NoiseStream.h"
 
+#include "knotmm/stepper/BinaryIO.h"
+#include "knotmm/stepper/Philox.h"
+
 #include <cmath>
 #include <istream>
 #include <ostream>
@@ -9,6 +12,19 @@ using namespace KnotMM;
 static inline uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
 
 void NoiseStream::seed(uint64_t value) {
+    counter = true;
+    counterKey = value;
+    draws = 0;
+    for (auto& word : s)
+        word = 0;
+    haveSpare = false;
+    spare = 0.0;
+}
+
+void NoiseStream::seedSequential(uint64_t value) {
+    counter = false;
+    counterKey = 0;
+    draws = 0;
     for (auto& word : s) {
         value += 0x9e3779b97f4a7c15ULL;
         uint64_t z = value;
@@ -18,6 +34,15 @@ void NoiseStream::seed(uint64_t value) {
     }
     haveSpare = false;
     spare = 0.0;
+}
+
+void NoiseStream::fill(double* out, int count) {
+    if (counter) {
+        philox::normals(counterKey, takeDraw(), out, count);
+        return;
+    }
+    for (int i = 0; i < count; i++)
+        out[i] = sequentialNormal();
 }
 
 uint64_t NoiseStream::next() {
@@ -34,7 +59,7 @@ uint64_t NoiseStream::next() {
 
 double NoiseStream::uniform() { return (next() >> 11) * 0x1.0p-53; }
 
-double NoiseStream::normal() {
+double NoiseStream::sequentialNormal() {
     if (haveSpare) {
         haveSpare = false;
         return spare;
@@ -51,14 +76,27 @@ double NoiseStream::normal() {
     return u * scale;
 }
 
-void NoiseStream::write(std::ostream& stream) const {
+void NoiseStream::writeSequential(std::ostream& stream) const {
     stream.write((const char*) s, sizeof(s));
     stream.write((const char*) &haveSpare, sizeof(bool));
     stream.write((const char*) &spare, sizeof(double));
 }
 
-void NoiseStream::read(std::istream& stream) {
+void NoiseStream::readSequential(std::istream& stream) {
     stream.read((char*) s, sizeof(s));
     stream.read((char*) &haveSpare, sizeof(bool));
     stream.read((char*) &spare, sizeof(double));
+    counter = false;  // layouts 2-5 end here; layout 6 reads its counter state after
+}
+
+void NoiseStream::writeCounter(std::ostream& stream) const {
+    binary::put(stream, counter);
+    binary::put(stream, counterKey);
+    binary::put(stream, draws);
+}
+
+void NoiseStream::readCounter(std::istream& stream) {
+    binary::get(stream, counter);
+    binary::get(stream, counterKey);
+    binary::get(stream, draws);
 }

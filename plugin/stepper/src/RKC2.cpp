@@ -77,9 +77,8 @@ double RKC2Control::spectralRadius(StepWork& work, const StateVector& f0) {
         }
         else {
             NoiseStream fixed;  // the same vector every time, independent of the run's noise
-            fixed.seed(12345);
-            for (int i = 0; i < m; i++)
-                host[i] = fixed.normal();
+            fixed.seedSequential(12345);
+            fixed.fill(host.data(), m);
         }
         b.upload(host, *v);
     }

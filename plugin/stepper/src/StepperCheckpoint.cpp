@@ -1,5 +1,7 @@
-// The stepper's checkpoint layout. Version 5 (the state the stepper keeps in double precision,
-// so a device run in mixed or single precision continues bit for bit) is written; versions 4
+// The stepper's checkpoint layout. Version 6 (the counter-based noise stream's key and draw
+// counter, appended) is written; versions 5 (the state the stepper keeps in double precision,
+// so a device run in mixed or single precision continues bit for bit; its run continues with
+// the sequential noise stream it was drawing from), 4
 // (without it: the next step starts from the Context's positions), 3 (without
 // ito_heun_adaptive's controller memory and queued Wiener increments) and 2 (without
 // leimkuhler_matthews's held kick either) still load. The order of the fields is the layout:
@@ -14,7 +16,7 @@ using namespace KnotMM;
 using namespace KnotMM::binary;
 
 namespace {
-const int CHECKPOINT_VERSION = 5;
+const int CHECKPOINT_VERSION = 6;
 
 void putState(std::ostream& stream, RPYBackend& b, bool have, const StateVector& v) {
     std::vector<double> host;
@@ -62,7 +64,7 @@ void Stepper::createCheckpoint(std::ostream& stream) const {
     put(stream, rkc2.errOld);
     put(stream, rkc2.haveHOld);
     put(stream, rkc2.hOld);
-    work.noise.write(stream);
+    work.noise.writeSequential(stream);
     put(stream, fixed.held.valid);
     putState(stream, b, fixed.held.valid, *fixed.held.kick);
     putState(stream, b, fixed.held.valid, *fixed.held.positions);
@@ -74,6 +76,7 @@ void Stepper::createCheckpoint(std::ostream& stream) const {
     }
     put(stream, haveState);
     putState(stream, b, haveState, *work.y);
+    work.noise.writeCounter(stream);
 }
 
 void Stepper::loadCheckpoint(std::istream& stream) {
@@ -116,7 +119,7 @@ void Stepper::loadCheckpoint(std::istream& stream) {
     get(stream, rkc2.errOld);
     get(stream, rkc2.haveHOld);
     get(stream, rkc2.hOld);
-    work.noise.read(stream);
+    work.noise.readSequential(stream);
     fixed.held.valid = false;
     if (version >= 3) {
         bool held = false;
@@ -146,6 +149,8 @@ void Stepper::loadCheckpoint(std::istream& stream) {
         get(stream, have);
         haveState = getState(stream, b, *work.y) && have;
     }
+    if (version >= 6)
+        work.noise.readCounter(stream);
     checkPositions = true;  // the Context's positions, restored with it, are compared at the next step
     if (!stream)
         throw OpenMM::OpenMMException("RPYIntegrator: the checkpoint is truncated");

@@ -37,8 +37,9 @@ inline OpenMM::ComputeArray& data(const StateVector& v) {
  * (getAtomIndexArray, read on the device at each call, so a reordering by OpenMM is followed).
  * Velocities v = mu F by a device pair loop; the vector operations are kernels (combine: one
  * kernel per pattern of terms, compiled when first used); norms and tests are device
- * reductions with one small download each. Noise: normals drawn on the host from the
- * stepper's stream and uploaded; Cholesky on the host (the Reference backend's RPYMobility
+ * reductions with one small download each. Noise: a counter-based stream's normals made on
+ * the device (kernel counterNormals, Philox.h's numbers), a sequential stream's (a run resumed
+ * from a layout-5 checkpoint) drawn on the host and uploaded; Cholesky on the host (the Reference backend's RPYMobility
  * matrix and choleskyLower); Lanczos with its Krylov loop on the device (src/CommonRPYNoise.cpp:
  * products, dot products, Gram-Schmidt and norms there; alpha and beta downloaded together
  * once per iteration for the small tridiagonal problem, LanczosSmallProblem, on the host).
@@ -107,7 +108,7 @@ private:
     OpenMM::ComputeKernel readPositionsKernel, writePositionsKernel, centreOfMassKernel, readForcesKernel,
         mobilityKernel, sumSquaresKernel, maxBeadSquareKernel, firstNonFiniteKernel, countDifferentKernel,
         checkTryKernel, lanczosDotsKernel, lanczosSubtractKernel, lanczosAlphaBetaKernel, lanczosScaleKernel,
-        lanczosCombineKernel;
+        lanczosCombineKernel, counterNormalsKernel;
     std::map<std::string, std::string> defines;
     std::map<std::string, OpenMM::ComputeKernel> combineKernels;  // by pattern of terms
     std::vector<double> host, hostOut, noiseAtHost, mat;           // host scratch

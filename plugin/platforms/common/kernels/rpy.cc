@@ -404,3 +404,52 @@ KERNEL void lanczosCombine(GLOBAL const double* RESTRICT basis, GLOBAL const dou
         out[i] = s;
     }
 }
+
+// --- counter-based normals (the stepper's Philox.h, the same integer operations) -----------
+
+/** hi and lo words of a * b from 32-bit halves. */
+inline DEVICE void philoxMulHiLo(mm_ulong a, mm_ulong b, mm_ulong* hi, mm_ulong* lo) {
+    const mm_ulong aLo = a & 0xffffffffUL, aHi = a >> 32, bLo = b & 0xffffffffUL, bHi = b >> 32;
+    const mm_ulong ll = aLo * bLo, lh = aLo * bHi, hl = aHi * bLo, hh = aHi * bHi;
+    const mm_ulong middle = (ll >> 32) + (lh & 0xffffffffUL) + (hl & 0xffffffffUL);
+    *lo = (middle << 32) | (ll & 0xffffffffUL);
+    *hi = hh + (lh >> 32) + (hl >> 32) + (middle >> 32);
+}
+
+/** z_even, z_odd by Box-Muller from two words (Philox.h: boxMuller). */
+inline DEVICE void philoxBoxMuller(mm_ulong wRadius, mm_ulong wAngle, double* z0, double* z1) {
+    const double u = ((double) (wRadius >> 11) + 1.0) * 1.1102230246251565e-16;
+    const double v = (double) (wAngle >> 11) * 1.1102230246251565e-16;
+    const double r = sqrt(-2.0 * log(u));
+    const double angle = 6.283185307179586 * v;
+    *z0 = r * cos(angle);
+    *z1 = r * sin(angle);
+}
+
+/**
+ * out = the 3 NUM_BEADS normals of draw `draw` under `key`: block b is Philox4x64-10 of the
+ * counter (b, draw, 0, 0) under the key (key, 0), giving normals 4b..4b+3. One thread a block.
+ */
+KERNEL void counterNormals(GLOBAL double* RESTRICT out, mm_ulong key, mm_ulong draw) {
+    for (int b = GLOBAL_ID; 4 * b < 3 * NUM_BEADS; b += GLOBAL_SIZE) {
+        mm_ulong c0 = (mm_ulong) b, c1 = draw, c2 = 0, c3 = 0, k0 = key, k1 = 0;
+        for (int round = 0; round < 10; round++) {
+            if (round > 0) {
+                k0 += 0x9E3779B97F4A7C15UL;
+                k1 += 0xBB67AE8584CAA73BUL;
+            }
+            mm_ulong hi0, lo0, hi1, lo1;
+            philoxMulHiLo(0xD2E7470EE14C6C93UL, c0, &hi0, &lo0);
+            philoxMulHiLo(0xCA5A826395121157UL, c2, &hi1, &lo1);
+            c0 = hi1 ^ c1 ^ k0;
+            c1 = lo1;
+            c2 = hi0 ^ c3 ^ k1;
+            c3 = lo0;
+        }
+        double z[4];
+        philoxBoxMuller(c0, c1, &z[0], &z[1]);
+        philoxBoxMuller(c2, c3, &z[2], &z[3]);
+        for (int j = 0; j < 4 && 4 * b + j < 3 * NUM_BEADS; j++)
+            out[4 * b + j] = z[j];
+    }
+}

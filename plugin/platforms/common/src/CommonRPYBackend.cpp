@@ -72,6 +72,7 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     lanczosAlphaBetaKernel = program->createKernel("lanczosAlphaBeta");
     lanczosScaleKernel = program->createKernel("lanczosScale");
     lanczosCombineKernel = program->createKernel("lanczosCombine");
+    counterNormalsKernel = program->createKernel("counterNormals");
     // the pair loop and the reductions run in work groups of exactly TILE and REDUCE_SIZE items
     for (ComputeKernel* k : {&mobilityKernel, &sumSquaresKernel, &maxBeadSquareKernel, &firstNonFiniteKernel,
                              &countDifferentKernel, &centreOfMassKernel, &checkTryKernel, &lanczosDotsKernel,
@@ -134,6 +135,9 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     lanczosCombineKernel->addArg(forces);
     lanczosCombineKernel->addArg(0);
     lanczosCombineKernel->addArg(forces);
+    counterNormalsKernel->addArg(forces);  // out, key, draw: set per call
+    counterNormalsKernel->addArg((unsigned long long) 0);
+    counterNormalsKernel->addArg((unsigned long long) 0);
     checkTryKernel->addArg(forces);  // err, y1: set per call
     checkTryKernel->addArg(forces);
     checkTryKernel->addArg(scalars);

@@ -1,4 +1,4 @@
-// Brownian noise of CommonRPYBackend: normals from the stepper's host stream, Cholesky on the
+// Brownian noise of CommonRPYBackend: normals made on the device (counter based), Cholesky on the
 // host for small systems, Lanczos with its Krylov loop on the device.
 
 #include "CommonRPYBackend.h"
@@ -123,8 +123,14 @@ void CommonRPYBackend::lanczosNoise(double scale, ComputeArray& z, ComputeArray&
 }
 
 void CommonRPYBackend::normals(NoiseStream& stream, StateVector& out) {
-    host.resize(3 * n);
-    for (double& x : host)
-        x = stream.normal();
-    data(out).upload(host);
+    if (!stream.counterBased()) {
+        host.resize(3 * n);
+        stream.fill(host.data(), 3 * n);
+        data(out).upload(host);
+        return;
+    }
+    counterNormalsKernel->setArg(0, data(out));
+    counterNormalsKernel->setArg(1, (unsigned long long) stream.key());
+    counterNormalsKernel->setArg(2, (unsigned long long) stream.takeDraw());
+    counterNormalsKernel->execute((3 * n + 3) / 4);
 }

@@ -189,8 +189,8 @@ void ReferenceRPYBackend::applyNoise(double scale, const StateVector& z, StateVe
 }
 
 void ReferenceRPYBackend::normals(NoiseStream& stream, StateVector& outVector) {
-    for (double& x : data(outVector))
-        x = stream.normal();
+    std::vector<double>& out = data(outVector);
+    stream.fill(out.data(), (int) out.size());
 }
 
 // --- vector operations ---------------------------------------------------------------------------

@@ -92,7 +92,11 @@ public:
      * Throws RPYStepFault (LanczosNotConverged) when it cannot.
      */
     virtual void applyNoise(double scale, const StateVector& z, StateVector& out) = 0;
-    /** out = 3n standard normals from `stream`, bead-major (drawn on the host). */
+    /**
+     * out = the next draw of 3n standard normals from `stream`, bead-major: a counter-based
+     * stream's draw made where the vectors live (philox::normals, the same numbers on every
+     * platform up to the rounding of its log, sqrt, cos and sin), a sequential one's on the host.
+     */
     virtual void normals(NoiseStream& stream, StateVector& out) = 0;
 
     // --- vector operations -----------------------------------------------------------------
