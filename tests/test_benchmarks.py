@@ -18,8 +18,8 @@ ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "benchmarks"
 README = BENCH / "README.md"
 #: Programs that are not timings over the harness: the yardsticks (whole programs of their
-#: own, held to knotmm by tests/e2e) and the harness itself.
-STANDALONE = {"harness", "numba_chain", "numba_brownian"}
+#: own, held to knotmm by tests/e2e), the harness itself, and a count that is not a timing.
+STANDALONE = {"harness", "numba_chain", "numba_brownian", "count_allocations"}
 #: Modules that scripts import (not run themselves).
 MODULES = {"force_layouts"}
 #: Where the repository names benchmark scripts.

@@ -31,6 +31,7 @@ void WienerQueue::take(StepWork& work, double h, StateVector& total) {
         if (span <= need * (1.0 + 1e-12)) {  // the whole interval (to rounding) fits
             backend.combine(total, {times(1.0, total), times(1.0, dw)});
             need = span >= need * (1.0 - 1e-12) ? 0.0 : need - span;
+            spare.push_back(std::move(pending.front().second));
             pending.pop_front();
             continue;
         }
@@ -45,7 +46,13 @@ void WienerQueue::take(StepWork& work, double h, StateVector& total) {
 }
 
 void WienerQueue::giveBack(double h, const StateVector& dw) {
-    VectorPtr copy = backend.createVector();
+    VectorPtr copy;
+    if (spare.empty())
+        copy = backend.createVector();
+    else {
+        copy = std::move(spare.back());
+        spare.pop_back();
+    }
     backend.copy(*copy, dw);
     pending.emplace_front(h, std::move(copy));
 }

@@ -24,7 +24,9 @@ void StepWork::velocity(const StateVector& at, StateVector& v) {
 void StepWork::keepVelocity(const StateVector& at) {
     k1.valid = true;
     backend.copy(*k1.positions, at);
-    k1.parameters = context->getParameters();
+    const std::map<std::string, double>& now = context->getParameters();
+    if (k1.parameters != now)  // compared first: a copy of equal maps would allocate every step
+        k1.parameters = now;
 }
 
 void StepWork::noiseSample(const StateVector& at, double scale, StateVector& out) {

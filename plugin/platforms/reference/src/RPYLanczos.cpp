@@ -53,8 +53,15 @@ bool KnotMM::tridiagonalEigen(const std::vector<double>& diag, const std::vector
 
 int LanczosSqrt::compute(const RPYMobility& mobility, int n, const double* x, const double* z, double tolerance,
                          double* out, int maxIter) {
-    return compute([&](const double* v, double* w) { mobility.velocities(n, x, v, w); }, 3 * n, z, tolerance,
-                   out, maxIter);
+    // one pointer captured: fits std::function's small buffer, so no allocation per call
+    const struct {
+        const RPYMobility& mobility;
+        int n;
+        const double* x;
+    } product{mobility, n, x};
+    const auto* p = &product;
+    return compute([p](const double* v, double* w) { p->mobility.velocities(p->n, p->x, v, w); }, 3 * n, z,
+                   tolerance, out, maxIter);
 }
 
 void LanczosSmallProblem::reset(int m) {

@@ -4,6 +4,7 @@
 #include "knotmm/stepper/StepWork.h"
 
 #include <deque>
+#include <vector>
 #include <utility>
 
 namespace KnotMM {
@@ -28,6 +29,7 @@ public:
 private:
     RPYBackend& backend;
     VectorPtr xi, first;
+    std::vector<VectorPtr> spare;  // vectors of used intervals, for giveBack (no allocation per step)
 };
 
 /**
