@@ -34,3 +34,23 @@ def trajectory_tolerance(platform: str) -> float:
     double precision (the bond length 0.6 d is 0.6000000238 there), so 5e-6 on those (measured
     over 4 tau_d of three chains: CPU 6.9e-7 d, OpenCL 1.6e-6 d)."""
     return 1e-7 if platform == "Reference" else 5e-6
+
+
+def engine_velocity(x, engine: str, platform: str, **simulation_kwargs):
+    """The velocity (d/tau_d, shape (n, 3)) at ``x`` of a ``Simulation`` on ``engine`` and
+    ``platform``, and the relative tolerance it has against a double-precision reference.
+
+    The Python engine gives it directly (1e-9); the plugin takes one Euler step of 1e-7 tau_d:
+    displacement / h, the forces changing by O(h) over it, and single-precision forces on the
+    CPU platform and float32 parameters on the device platforms (1e-4).
+    """
+    from knotmm.dynamics.deterministic import Euler
+    from knotmm.engine.simulation import Simulation
+
+    h = 1e-7
+    sim = Simulation(x, engine=engine, integrator=Euler(h), **placement(platform),
+                     **simulation_kwargs)
+    if engine == "python":
+        return sim.velocity(x), 1e-9
+    sim.step(1)
+    return (sim.positions - x) / h, 1e-4
