@@ -150,7 +150,7 @@ def cmd_replicas(args):
     from knotmm.replicas import replica_seeds
 
     work = args.work
-    common = [] if args.peclet is None else [f"run.peclet={args.peclet}"]
+    common = ([] if args.peclet is None else [f"run.peclet={args.peclet}"]) + list(args.set)
     extra = ["-q", "--beads", str(args.beads)]
     seeds = replica_seeds(1, args.replicas)
 
@@ -390,6 +390,8 @@ def main(argv=None):
     s.add_argument("--beads", type=int, default=90)
     s.add_argument("--duration", type=float, default=40.0)
     s.add_argument("--peclet", type=float, default=None)
+    s.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="a run-file key for every run (singles and sets alike), repeatable")
     s.set_defaults(func=cmd_replicas)
 
     s = sub.add_parser("sweep", help="a sweep's seeds stepped together against one run each")
