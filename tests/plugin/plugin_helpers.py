@@ -31,3 +31,15 @@ def dimer_system(k, l0):
     bond.addBond(0, 1, l0, k)
     system.addForce(bond)
     return system
+
+
+def checkpoint_round_trip(ctx, integrator, saved_at: float, end: float):
+    """Step to ``saved_at``, checkpoint, step to ``end``; load the checkpoint and step to
+    ``end`` again. Returns (the checkpoint, the first positions at ``end``, the second)."""
+    integrator.stepTo(saved_at)
+    saved = ctx.createCheckpoint()
+    integrator.stepTo(end)
+    first = positions_of(ctx)
+    ctx.loadCheckpoint(saved)
+    integrator.stepTo(end)
+    return saved, first, positions_of(ctx)

@@ -14,7 +14,7 @@ import numpy as np
 import openmm
 import pytest
 import reference_model as rm
-from plugin_helpers import positions_of
+from plugin_helpers import checkpoint_round_trip, positions_of
 from scipy import stats
 
 import knotmm.plugin as kp
@@ -164,10 +164,5 @@ def test_checkpoint_continues_the_counter_stream(method, platform):
     ctx = openmm.Context(ring_system(12), integ, openmm.Platform.getPlatformByName(platform),
                          props)
     ctx.setPositions(x)
-    integ.stepTo(0.05)
-    saved = ctx.createCheckpoint()
-    integ.stepTo(0.1)
-    first = positions_of(ctx)
-    ctx.loadCheckpoint(saved)
-    integ.stepTo(0.1)
-    np.testing.assert_array_equal(positions_of(ctx), first)
+    _, first, again = checkpoint_round_trip(ctx, integ, 0.05, 0.1)
+    np.testing.assert_array_equal(again, first)
