@@ -46,7 +46,7 @@ __all__ = ["COPY_PLATFORMS", "MAX_TOGETHER", "TOGETHER_MAX_BEADS", "CopyGroup", 
 log = logging.getLogger(__name__)
 
 #: Platforms where the plugin holds copies of a system in one Context.
-COPY_PLATFORMS = ("Reference", "CPU")
+COPY_PLATFORMS = ("Reference", "CPU", "OpenCL", "CUDA")
 
 
 #: Largest replica (in beads) stepped together by default, Brownian and deterministic: above,

@@ -13,12 +13,20 @@ import openmm
 import pytest
 from threadpoolctl import threadpool_limits
 
+from knotmm.engine.engines import DEVICE_PLATFORMS, plugin_platforms
 from knotmm.model.layout import ChainLayout
 from knotmm.model.system import ChainModel, chain_system, copies_system
 from knotmm.plugin import RPYIntegrator
 from knotmm.shapes import torus_knot
 
 N, K = 30, 3
+PLATFORMS = plugin_platforms()  # Reference, CPU, OpenCL (pocl here), CUDA where a GPU is
+
+
+def _context(system, integ, platform):
+    """A Context on ``platform``; a device platform in double precision."""
+    properties = {"Precision": "double"} if platform in DEVICE_PLATFORMS else {}
+    return openmm.Context(system, integ, openmm.Platform.getPlatformByName(platform), properties)
 
 
 def _starts(k=K, seed=0):
@@ -35,7 +43,7 @@ def _integrator(method, seed=0, threads=1):
 
 def _single(x, method, platform, seed=0):
     integ = _integrator(method, seed)
-    ctx = openmm.Context(chain_system(x), integ, openmm.Platform.getPlatformByName(platform))
+    ctx = _context(chain_system(x), integ, platform)
     ctx.setPositions(x)
     return integ, ctx
 
@@ -50,7 +58,7 @@ def _batch(starts, method, platform, singles=None, threads=1, apart=True):
     x = np.vstack(starts)
     system = (chain_system(x, layout=ChainLayout((N,) * k, (True,) * k)) if apart
               else copies_system(starts[0], ChainModel(), ChainLayout.ring(N), k))
-    ctx = openmm.Context(system, integ, openmm.Platform.getPlatformByName(platform))
+    ctx = _context(system, integ, platform)
     ctx.setPositions(x)
     for c, start in enumerate(starts):
         integ.setCopyPositions(c, start.ravel().tolist())
@@ -76,7 +84,7 @@ def _accepted(integ, c, method, platform):
 
 
 @pytest.mark.parametrize("apart", [True, False])
-@pytest.mark.parametrize("platform", ["Reference", "CPU"])
+@pytest.mark.parametrize("platform", PLATFORMS)
 @pytest.mark.parametrize("method", ["rk23", "ito_heun", "ito_heun_adaptive"])
 def test_each_copy_follows_its_single_run(method, platform, apart):
     starts = _starts()
@@ -89,10 +97,12 @@ def test_each_copy_follows_its_single_run(method, platform, apart):
     for c, (integ, ctx) in enumerate(singles):
         assert batch.getCopyTime(c) == duration
         assert batch.getCopyFaultKind(c) == ""
-        # to rounding: the Reference platform in double, the CPU one's float forces
-        tol = 1e-9 if platform == "Reference" else 1e-4
+        # to rounding: the Reference platform and a device in double, the CPU one's float
+        # forces; on a device the forces are summed in fixed point, in any order, so copies
+        # in one place follow their single runs to 5e-13 d (pocl), on the grid to 1e-9 d
+        tol = {"Reference": 1e-9, "CPU": 1e-4}.get(platform, 1e-8 if apart else 1e-11)
         np.testing.assert_allclose(_copy(batch, c), _positions(ctx), rtol=0, atol=tol)
-        if platform == "Reference":  # the same steps, one by one
+        if platform != "CPU":  # the same steps, one by one
             assert _accepted(batch, c, method, platform) == integ.getNumAcceptedSteps()
     # the copies are different runs (their starts, their noise)
     assert np.abs(_copy(batch, 0) - _copy(batch, 1)).max() > 1e-3
@@ -113,14 +123,16 @@ def test_a_copy_that_needs_small_steps_does_not_slow_the_others():
     assert counts[0] >= 1.5 * max(counts[1:])  # the squeezed copy took many more steps
 
 
-def test_in_one_place_a_copy_does_not_feel_what_the_others_do():
+@pytest.mark.parametrize("platform", [p for p in PLATFORMS if p != "Reference"])
+def test_in_one_place_a_copy_does_not_feel_what_the_others_do(platform):
     # copies_system: a copy's forces are its own; copy 0 takes the same steps whether the
     # others move, stand still or were never given a target
     starts = _starts(4)
-    singles = [_single(x, "ito_heun_adaptive", "CPU", seed=30 + c) for c, x in enumerate(starts)]
+    singles = [_single(x, "ito_heun_adaptive", platform, seed=30 + c)
+               for c, x in enumerate(starts)]
     runs = []
     for targets in ([0.3] * 4, [0.3, 0.0, 0.0, 0.0], [0.3, 0.1, 0.25, 0.0]):
-        batch, ctx = _batch(starts, "ito_heun_adaptive", "CPU", singles, apart=False)
+        batch, ctx = _batch(starts, "ito_heun_adaptive", platform, singles, apart=False)
         assert batch.getCopySpacing() == 0.0
         batch.stepCopiesTo(targets, 1e9)
         runs.append((_copy(batch, 0), ctx))
@@ -130,23 +142,27 @@ def test_in_one_place_a_copy_does_not_feel_what_the_others_do():
     assert np.abs(_copy(batch, 0) - _copy(batch, 3)).max() > 1e-3
 
 
-def test_moving_one_copy_far_away_changes_no_other():
+@pytest.mark.parametrize("platform", PLATFORMS)
+def test_moving_one_copy_far_away_changes_no_other(platform):
     starts = _starts()
     moved = [starts[0] + [400.0, -300.0, 1000.0], *starts[1:]]
-    a, _actx = _batch(starts, "rk23", "Reference")  # (a Context kept while its integrator steps)
-    b, _bctx = _batch(moved, "rk23", "Reference")
+    a, _actx = _batch(starts, "rk23", platform)  # (a Context kept while its integrator steps)
+    b, _bctx = _batch(moved, "rk23", platform)
     assert a.stepCopiesTo([1.0] * K, 1e9) and b.stepCopiesTo([1.0] * K, 1e9)
     for c in range(1, K):
         np.testing.assert_array_equal(_copy(a, c), _copy(b, c))
-    np.testing.assert_allclose(_copy(b, 0) - [400.0, -300.0, 1000.0], _copy(a, 0), atol=1e-9)
+    # the moved copy itself: its place is rounded otherwise (float forces on the CPU platform)
+    tol = 1e-4 if platform == "CPU" else 1e-9
+    np.testing.assert_allclose(_copy(b, 0) - [400.0, -300.0, 1000.0], _copy(a, 0), atol=tol)
 
 
-def test_a_copy_that_fails_leaves_the_others_going():
+@pytest.mark.parametrize("platform", PLATFORMS)
+def test_a_copy_that_fails_leaves_the_others_going(platform):
     starts = _starts()
     broken = starts[1].copy()
     broken[5] = broken[15]  # two beads at one point: the mobility has no Cholesky factor
     starts[1] = broken
-    batch, _ = _batch(starts, "ito_heun", "Reference")
+    batch, _ = _batch(starts, "ito_heun", platform)
     assert batch.stepCopiesTo([0.1] * K, 1e9)  # every copy that has not failed got there
     assert batch.getCopyFaultKind(1) in ("not_positive_definite", "non_finite")
     assert batch.getCopyFaultMessage(1)
@@ -169,10 +185,11 @@ def test_threads_share_out_the_copies_and_change_no_number():
         np.testing.assert_array_equal(_copy(two, c), _copy(one, c))
 
 
-def test_a_budget_ends_a_call_between_steps_and_changes_no_step():
+@pytest.mark.parametrize("platform", [p for p in PLATFORMS if p != "CPU"])
+def test_a_budget_ends_a_call_between_steps_and_changes_no_step(platform):
     starts = _starts()
-    whole, _wctx = _batch(starts, "rk23", "Reference")
-    parts, _pctx = _batch(starts, "rk23", "Reference")
+    whole, _wctx = _batch(starts, "rk23", platform)
+    parts, _pctx = _batch(starts, "rk23", platform)
     assert whole.stepCopiesTo([1.0] * K, 1e9)
     calls = 1
     while not parts.stepCopiesTo([1.0] * K, 0.0):  # a step per copy per call

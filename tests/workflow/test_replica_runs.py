@@ -9,15 +9,19 @@ import mdtraj
 import numpy as np
 import pytest
 
+import knotmm.plugin as kp
 import knotmm.replicas as replicas
 from knotmm.analysis.replicas import analyze_sweep
 from knotmm.cli.main import main
 from knotmm.config import RunConfig
+from knotmm.engine.engines import DEVICE_PLATFORMS, plugin_platforms
 from knotmm.errors import SimulationFault
 from knotmm.io.replica_set import read_replica_set
 from knotmm.io.rundir import read_facts
 from knotmm.replicas import replica_seeds, resume_replicas, run_replicas
 from knotmm.workflow import run
+
+_PLATFORMS = plugin_platforms() if kp.available() else ()
 
 BROWNIAN = {
     "knot": {"beads": 30, "minor_radius": 0.6},
@@ -92,6 +96,29 @@ def test_one_after_another_replicas_equal_single_runs_bit_for_bit(tmp_path):
         directory=single, progress=False)
     np.testing.assert_array_equal(_xyz(tmp_path / "set" / "replica_1"), _xyz(single))
     assert "replica_stepping" not in read_facts(tmp_path / "set" / "replica_1")
+
+
+@pytest.mark.parametrize("platform", [p for p in DEVICE_PLATFORMS if p in _PLATFORMS] or [
+    pytest.param("OpenCL", marks=pytest.mark.skip(reason="no device platform with the plugin"))])
+def test_replicas_on_a_device_platform_equal_single_runs_with_their_seeds(tmp_path, platform):
+    # the device backend's copies (CommonRPYBatch): each replica follows its single run on
+    # that platform, in double precision, to the trajectory file's float32 rounding
+    run_keys = {**BROWNIAN["run"], "duration": 0.4, "platform": platform,
+                "precision": "double"}
+    root = tmp_path / "set"
+    result = run_replicas(RunConfig.from_dict({**BROWNIAN, "run": run_keys}), directory=root,
+                          progress=False)
+    assert not result.errors
+    record = read_replica_set(root)["replicas"]
+    assert record["stepping"] == "together"
+    for k, seed in enumerate(record["seeds"]):
+        single = tmp_path / f"single_{k}"
+        run(RunConfig.from_dict({**BROWNIAN, "run": {**run_keys, "replicas": 1, "seed": seed}}),
+            directory=single, progress=False)
+        assert read_facts(root / f"replica_{k}")["replica_stepping"] == (
+            f"together: copy {k} of 3 in one Context")
+        np.testing.assert_allclose(_xyz(root / f"replica_{k}"), _xyz(single), rtol=0,
+                                   atol=2e-6)
 
 
 @pytest.mark.parametrize(("stepping", "together"), [("auto", False), ("together", True)])

@@ -29,8 +29,8 @@ void StepperKernel::initialize(const System& system, const RPYIntegrator& integr
 }
 
 std::unique_ptr<RPYCopies> StepperKernel::createCopies(const System&, const RPYIntegrator&) {
-    throw OpenMMException("RPYIntegrator: copies of a system (numCopies > 1) run on the Reference and CPU "
-                          "platforms; this one (" + getPlatform().getName() + ") has none");
+    throw OpenMMException("RPYIntegrator: copies of a system (numCopies > 1) run on the Reference, CPU, OpenCL "
+                          "and CUDA platforms; this one (" + getPlatform().getName() + ") has none");
 }
 
 double StepperKernel::execute(ContextImpl& context, RPYIntegrator& integrator, double targetTime) {

@@ -13,6 +13,7 @@
 #include "openmm/common/ComputeContext.h"
 
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,12 @@ inline OpenMM::ComputeArray& data(const StateVector& v) {
 class CommonRPYBackend : public RPYBackend {
 public:
     CommonRPYBackend(OpenMM::ComputeContext& cc, const OpenMM::System& system, const RPYIntegrator& integrator);
+    /**
+     * A copy of a batch (CommonRPYBatch): `numBeads` beads whose positions and forces the batch
+     * moves to and from the Context; the programs of `prototype` (another copy) when given.
+     */
+    CommonRPYBackend(OpenMM::ComputeContext& cc, int numBeads, const RPYIntegrator& integrator,
+                     const CommonRPYBackend* prototype);
     int numBeads() const override { return n; }
     VectorPtr createVector() override;
     void applySettings(const RPYIntegrator& integrator) override;
@@ -79,6 +86,10 @@ public:
     void upload(const std::vector<double>& host, StateVector& v) override;
 
 private:
+    friend class CommonRPYBatch;
+    void setUp(const RPYIntegrator& integrator, const CommonRPYBackend* prototype);
+    /** The fixed arguments of the kernels that read and write the Context. */
+    void bindContext();
     /** y = the Context's bead positions. */
     void readPositions(OpenMM::ComputeArray& y);
     /** The number of i with a_i != b_i, as the Context stores positions (countDifferent in kernels/rpy.cc). */
@@ -110,6 +121,8 @@ private:
         checkTryKernel, lanczosDotsKernel, lanczosSubtractKernel, lanczosAlphaBetaKernel, lanczosScaleKernel,
         lanczosCombineKernel, counterNormalsKernel;
     std::map<std::string, std::string> defines;
+    OpenMM::ComputeProgram program;                                // kernels/rpy.cc, shared by a batch's copies
+    std::shared_ptr<std::map<std::string, OpenMM::ComputeProgram>> combinePrograms;  // by pattern, shared too
     std::map<std::string, OpenMM::ComputeKernel> combineKernels;  // by pattern of terms
     std::vector<double> host, hostOut, noiseAtHost, mat;           // host scratch
 };
@@ -128,6 +141,7 @@ public:
 
 protected:
     std::unique_ptr<RPYBackend> createBackend(const OpenMM::System& system, const RPYIntegrator& integrator) override;
+    std::unique_ptr<RPYCopies> createCopies(const OpenMM::System& system, const RPYIntegrator& integrator) override;
 
 private:
     OpenMM::ComputeContext& cc;

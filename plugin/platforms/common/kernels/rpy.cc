@@ -453,3 +453,100 @@ KERNEL void counterNormals(GLOBAL double* RESTRICT out, mm_ulong key, mm_ulong d
             out[4 * b + j] = z[j];
     }
 }
+
+// --- K copies of n beads in one Context (CommonRPYBatch; NUM_BEADS is n) ----------------------
+// `all` holds every copy's 3n numbers one after another (copy j's beads are the System's beads
+// j n .. (j + 1) n - 1); `centres` 4 doubles per copy: its centre of mass and its reach (the
+// largest distance of a bead from that centre). The batch reads the Context with readPositions
+// and readForces under a particleBead over all copies' beads.
+
+/**
+ * all[copy] = y, centres[copy] = its centre of mass (summed as centreOfMass sums, so a copy is
+ * shifted exactly as when it is alone) and its reach. One work group of REDUCE_SIZE.
+ */
+KERNEL void gatherCopy(GLOBAL const double* RESTRICT y, GLOBAL double* RESTRICT all, GLOBAL double* RESTRICT centres,
+        int copy) {
+    LOCAL double part[3*REDUCE_SIZE];
+    double sx = 0, sy = 0, sz = 0;
+    for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
+        sx += y[3*b];
+        sy += y[3*b+1];
+        sz += y[3*b+2];
+    }
+    part[LOCAL_ID] = sx;
+    part[REDUCE_SIZE+LOCAL_ID] = sy;
+    part[2*REDUCE_SIZE+LOCAL_ID] = sz;
+    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+        SYNC_THREADS;
+        if (LOCAL_ID < stride) {
+            part[LOCAL_ID] += part[LOCAL_ID+stride];
+            part[REDUCE_SIZE+LOCAL_ID] += part[REDUCE_SIZE+LOCAL_ID+stride];
+            part[2*REDUCE_SIZE+LOCAL_ID] += part[2*REDUCE_SIZE+LOCAL_ID+stride];
+        }
+    }
+    SYNC_THREADS;
+    const double cx = part[0]/NUM_BEADS, cy = part[REDUCE_SIZE]/NUM_BEADS, cz = part[2*REDUCE_SIZE]/NUM_BEADS;
+    SYNC_THREADS;
+    GLOBAL double* RESTRICT out = all+3*(mm_long) copy*NUM_BEADS;
+    double reach = 0;
+    for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
+        const double x = y[3*b], yy = y[3*b+1], z = y[3*b+2];
+        out[3*b] = x;
+        out[3*b+1] = yy;
+        out[3*b+2] = z;
+        const double rr = (x-cx)*(x-cx)+(yy-cy)*(yy-cy)+(z-cz)*(z-cz);
+        reach = (rr > reach ? rr : reach);  // a NaN is left out: such a copy fails on its own
+    }
+    part[LOCAL_ID] = reach;
+    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+        SYNC_THREADS;
+        if (LOCAL_ID < stride && part[LOCAL_ID+stride] > part[LOCAL_ID])
+            part[LOCAL_ID] = part[LOCAL_ID+stride];
+    }
+    SYNC_THREADS;
+    if (LOCAL_ID == 0) {
+        centres[4*copy] = cx;
+        centres[4*copy+1] = cy;
+        centres[4*copy+2] = cz;
+        centres[4*copy+3] = sqrt(part[0]);
+    }
+}
+
+/**
+ * posq (+ posqCorrection) of every copy's beads = (all - its centre) + its grid point: copy j
+ * at ((j % side - m) s, ((j / side) % side - m) s, (j / side^2 - m) s), m = (side - 1) / 2, s =
+ * spacing (0: every copy at its own centre of mass). Rounded as writePositions rounds.
+ */
+KERNEL void writeCopies(GLOBAL real4* RESTRICT posq,
+#ifdef USE_MIXED_PRECISION
+        GLOBAL real4* RESTRICT posqCorrection,
+#endif
+        GLOBAL const int* RESTRICT atomIndex, GLOBAL const int* RESTRICT particleBead, GLOBAL const double* RESTRICT all,
+        GLOBAL const double* RESTRICT centres, double spacing, int side) {
+    const double middle = 0.5*(side-1);
+    for (int i = GLOBAL_ID; i < NUM_ATOMS; i += GLOBAL_SIZE) {
+        const int g = particleBead[atomIndex[i]];
+        if (g < 0)
+            continue;
+        const int j = g/NUM_BEADS;
+        const double ox = ((double) (j%side)-middle)*spacing, oy = ((double) ((j/side)%side)-middle)*spacing,
+                oz = ((double) (j/(side*side))-middle)*spacing;
+        const double px = (all[3*g]-centres[4*j])+ox, py = (all[3*g+1]-centres[4*j+1])+oy,
+                pz = (all[3*g+2]-centres[4*j+2])+oz;
+        real4 p = posq[i];
+        p.x = (real) px;
+        p.y = (real) py;
+        p.z = (real) pz;
+        posq[i] = p;
+#ifdef USE_MIXED_PRECISION
+        posqCorrection[i] = make_real4((real) (px - (double) p.x), (real) (py - (double) p.y), (real) (pz - (double) p.z), 0);
+#endif
+    }
+}
+
+/** out = all[copy] (3n numbers). */
+KERNEL void scatterCopy(GLOBAL const double* RESTRICT all, GLOBAL double* RESTRICT out, int copy) {
+    GLOBAL const double* RESTRICT in = all+3*(mm_long) copy*NUM_BEADS;
+    for (int i = GLOBAL_ID; i < 3*NUM_BEADS; i += GLOBAL_SIZE)
+        out[i] = in[i];
+}

@@ -24,12 +24,6 @@ using KnotMM::data;
 CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, const RPYIntegrator& integrator)
     : cc(cc), diameter(integrator.getBeadDiameter()), mu0(integrator.getMobility()),
       hostMobility(diameter, mu0, 1) {
-    if (!cc.getSupportsDoublePrecision())
-        throw OpenMMException("RPYIntegrator: this device has no double precision, which the RPY integrator "
-                              "needs (its state and sums are in double); use another device or the CPU platform");
-    mixed = cc.getUseMixedPrecision();
-    single = !mixed && !cc.getUseDoublePrecision();
-    numAtoms = cc.getNumAtoms();
     vector<int> beadOf(system.getNumParticles(), -1);
     for (int i = 0; i < system.getNumParticles(); i++) {
         if (system.isVirtualSite(i))
@@ -37,12 +31,29 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
         else
             beadOf[i] = n++;
     }
+    particleBead.initialize<int>(cc, beadOf.size(), "rpyParticleBead");
+    particleBead.upload(beadOf);
+    setUp(integrator, nullptr);
+}
+
+CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, int numBeads, const RPYIntegrator& integrator,
+                                   const CommonRPYBackend* prototype)
+    : cc(cc), n(numBeads), diameter(integrator.getBeadDiameter()), mu0(integrator.getMobility()),
+      hostMobility(diameter, mu0, 1) {
+    setUp(integrator, prototype);
+}
+
+void CommonRPYBackend::setUp(const RPYIntegrator& integrator, const CommonRPYBackend* prototype) {
+    if (!cc.getSupportsDoublePrecision())
+        throw OpenMMException("RPYIntegrator: this device has no double precision, which the RPY integrator "
+                              "needs (its state and sums are in double); use another device or the CPU platform");
+    mixed = cc.getUseMixedPrecision();
+    single = !mixed && !cc.getUseDoublePrecision();
+    numAtoms = cc.getNumAtoms();
     tileSize = ComputeContext::TileSize;
     reduceSize = 128;
     while (reduceSize > 1 && reduceSize > cc.getMaxThreadBlockSize())
         reduceSize /= 2;
-    particleBead.initialize<int>(cc, beadOf.size(), "rpyParticleBead");
-    particleBead.upload(beadOf);
     com.initialize<double>(cc, 3, "rpyCentreOfMass");
     scalars.initialize<double>(cc, 3, "rpyScalars");
     counts.initialize<int>(cc, 1, "rpyCounts");
@@ -56,7 +67,14 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     defines["REDUCE_SIZE"] = cc.intToString(reduceSize);
     if (single)
         defines["KNOTMM_SINGLE"] = "1";
-    ComputeProgram program = cc.compileProgram(CommonRPYKernelSources::rpy, defines);
+    if (prototype != nullptr) {  // a copy of a batch: the first copy's programs
+        program = prototype->program;
+        combinePrograms = prototype->combinePrograms;
+    }
+    else {
+        program = cc.compileProgram(CommonRPYKernelSources::rpy, defines);
+        combinePrograms.reset(new std::map<string, ComputeProgram>());
+    }
     readPositionsKernel = program->createKernel("readPositions");
     writePositionsKernel = program->createKernel("writePositions");
     centreOfMassKernel = program->createKernel("centreOfMass");
@@ -81,26 +99,10 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
             throw OpenMMException("RPYIntegrator: the device runs kernel " + (*k)->getName() + " in work groups of at most " +
                                   std::to_string((*k)->getMaxBlockSize()) + " items, fewer than it needs");
 
-    // Arguments that never change are set once; vectors are set at each call (setArg).
-    readPositionsKernel->addArg(cc.getPosq());
-    if (mixed)
-        readPositionsKernel->addArg(cc.getPosqCorrection());
-    readPositionsKernel->addArg(cc.getAtomIndexArray());
-    readPositionsKernel->addArg(particleBead);
-    readPositionsKernel->addArg(forces);  // y, set per call
-    writePositionsKernel->addArg(cc.getPosq());
-    if (mixed)
-        writePositionsKernel->addArg(cc.getPosqCorrection());
-    writePositionsKernel->addArg(cc.getAtomIndexArray());
-    writePositionsKernel->addArg(particleBead);
-    writePositionsKernel->addArg(forces);  // y, set per call
-    writePositionsKernel->addArg(com);
-    centreOfMassKernel->addArg(forces);  // y, set per call
-    centreOfMassKernel->addArg(com);
-    readForcesKernel->addArg(cc.getLongForceBuffer());
-    readForcesKernel->addArg(cc.getAtomIndexArray());
-    readForcesKernel->addArg(particleBead);
-    readForcesKernel->addArg(forces);
+    // Arguments that never change are set once; vectors are set at each call (setArg). A copy
+    // of a batch reads and writes no Context itself (CommonRPYBatch does).
+    if (particleBead.isInitialized())
+        bindContext();
     mobilityKernel->addArg(noiseAt);  // x, f, v: set per call
     mobilityKernel->addArg(forces);
     mobilityKernel->addArg(lanczosW);
@@ -142,6 +144,28 @@ CommonRPYBackend::CommonRPYBackend(ComputeContext& cc, const System& system, con
     checkTryKernel->addArg(forces);
     checkTryKernel->addArg(scalars);
     applySettings(integrator);
+}
+
+void CommonRPYBackend::bindContext() {
+    readPositionsKernel->addArg(cc.getPosq());
+    if (mixed)
+        readPositionsKernel->addArg(cc.getPosqCorrection());
+    readPositionsKernel->addArg(cc.getAtomIndexArray());
+    readPositionsKernel->addArg(particleBead);
+    readPositionsKernel->addArg(forces);  // y, set per call
+    writePositionsKernel->addArg(cc.getPosq());
+    if (mixed)
+        writePositionsKernel->addArg(cc.getPosqCorrection());
+    writePositionsKernel->addArg(cc.getAtomIndexArray());
+    writePositionsKernel->addArg(particleBead);
+    writePositionsKernel->addArg(forces);  // y, set per call
+    writePositionsKernel->addArg(com);
+    centreOfMassKernel->addArg(forces);  // y, set per call
+    centreOfMassKernel->addArg(com);
+    readForcesKernel->addArg(cc.getLongForceBuffer());
+    readForcesKernel->addArg(cc.getAtomIndexArray());
+    readForcesKernel->addArg(particleBead);
+    readForcesKernel->addArg(forces);
 }
 
 VectorPtr CommonRPYBackend::createVector() {
@@ -257,8 +281,12 @@ ComputeKernel& CommonRPYBackend::combineKernel(const string& pattern, int count)
         src << (k == 0 ? "        double acc = " : "        acc = acc + ") << term << ";\n";
     }
     src << "        out[i] = acc;\n    }\n}\n";
-    std::map<string, string> combineDefines = {{"SIZE", cc.intToString(3 * n)}};
-    ComputeKernel kernel = cc.compileProgram(src.str(), combineDefines)->createKernel("combine");
+    auto compiled = combinePrograms->find(pattern);
+    if (compiled == combinePrograms->end()) {
+        std::map<string, string> combineDefines = {{"SIZE", cc.intToString(3 * n)}};
+        compiled = combinePrograms->emplace(pattern, cc.compileProgram(src.str(), combineDefines)).first;
+    }
+    ComputeKernel kernel = compiled->second->createKernel("combine");
     kernel->addArg(forces);
     for (int k = 0; k < count; k++) {
         kernel->addArg(forces);
