@@ -21,14 +21,19 @@ single engine's checks (:meth:`knotmm.engine.plugin_engine.PluginEngine.advance_
 is then found and reported as in a single run, and the others go on. A stop asked for by a
 signal ends every replica's stretch at a whole step, and each replica writes its checkpoint.
 
+The copies live on any platform the plugin has a kernel on: on the Reference and CPU
+platforms the copies are evaluated on the host, on OpenCL and CUDA on the device
+(``plugin/platforms/common``, ``CommonRPYBatch``).
+
 The copies share one place: each is evaluated at its own centre of mass, as a run alone is,
 and the System's steric term acts within each copy only
 (:func:`knotmm.model.system.copies_system`: one interaction group per copy). So a copy's
 forces are those of the copy alone whatever the others do, bit for bit, and a set that was
 stopped resumes to the trajectories of the set never stopped. They agree with single runs to
-rounding, not bit for bit: the grouped steric term (a ``CustomNonbondedForce``) rounds
-otherwise than a single run's ``NonbondedForce`` (``tests/plugin/test_copies.py``,
-``tests/workflow/test_replica_runs.py``).
+rounding, not bit for bit, on the host: the grouped steric term (a ``CustomNonbondedForce``)
+rounds otherwise than a single run's ``NonbondedForce``; on a device in double precision they
+write the same trajectory file (its forces are summed in fixed point, in any order)
+(``tests/plugin/test_copies.py``, ``tests/workflow/test_replica_runs.py``).
 """
 
 from __future__ import annotations
@@ -40,21 +45,24 @@ import numpy as np
 
 from knotmm.engine.interrupt import StopRequested, request_stop, stop_signal, take_stop_request
 
-__all__ = ["COPY_PLATFORMS", "MAX_TOGETHER", "TOGETHER_MAX_BEADS", "CopyGroup", "copies_refusal",
-           "enter_group", "leave_group", "run_together"]
+__all__ = ["COPY_PLATFORMS", "HOST_PLATFORMS", "MAX_TOGETHER", "TOGETHER_MAX_BEADS", "CopyGroup",
+           "copies_refusal", "enter_group", "leave_group", "run_together"]
 
 log = logging.getLogger(__name__)
 
 #: Platforms where the plugin holds copies of a system in one Context.
 COPY_PLATFORMS = ("Reference", "CPU", "OpenCL", "CUDA")
+#: Those of them where the copies are evaluated on the host (``TOGETHER_MAX_BEADS`` applies).
+HOST_PLATFORMS = ("Reference", "CPU")
 
 
-#: Largest replica (in beads) stepped together by default, Brownian and deterministic: above,
-#: the copies' interleaved work (Cholesky factors and mobility matrices of 8 copies in turn,
-#: the grouped steric term's pairs) costs more than one OpenMM call per copy saves
-#: (``benchmarks/README.md``, ``replicas``; 8 replicas, 10 tau_d at Pe = 2: 0.80x, 0.87x,
-#: 1.08x, 1.20x the wall time of one after another at N = 40, 60, 90, 120; 40 tau_d at
-#: Pe = inf: 0.94x, 0.99x, 1.53x at N = 90, 120, 240).
+#: Largest replica (in beads) stepped together by default on a host platform, Brownian and
+#: deterministic: above, the copies' interleaved work (Cholesky factors and mobility matrices
+#: of 8 copies in turn, the grouped steric term's pairs) costs more than one OpenMM call per
+#: copy saves (``benchmarks/README.md``, ``replicas``; 8 replicas, 10 tau_d at Pe = 2: 0.80x,
+#: 0.87x, 1.08x, 1.20x the wall time of one after another at N = 40, 60, 90, 120; 40 tau_d
+#: at Pe = inf: 0.94x, 0.99x, 1.53x at N = 90, 120, 240). On a device platform the copies'
+#: launches replace as many force calls, and together is the default at every size.
 TOGETHER_MAX_BEADS = {"brownian": 79, "deterministic": 120}
 
 
@@ -93,7 +101,8 @@ def copies_refusal(engine: str, platform: str, count: int, stepping: str = "auto
         return (f"the plugin holds copies on the {' and '.join(COPY_PLATFORMS)} platforms, "
                 f"not on {platform}")
     kind = "brownian" if brownian else "deterministic"
-    if stepping == "auto" and n_beads > TOGETHER_MAX_BEADS[kind]:
+    # on a device platform (OpenCL, CUDA) together is the faster way at every size measured
+    if stepping == "auto" and platform in HOST_PLATFORMS and n_beads > TOGETHER_MAX_BEADS[kind]:
         return (f"measured faster one after another for {kind} replicas of more than "
                 f"{TOGETHER_MAX_BEADS[kind]} beads (benchmarks/README.md, replicas); "
                 f'run.replica_stepping = "together" steps them together')

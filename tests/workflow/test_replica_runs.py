@@ -121,6 +121,18 @@ def test_replicas_on_a_device_platform_equal_single_runs_with_their_seeds(tmp_pa
                                    atol=2e-6)
 
 
+def test_auto_steps_together_on_a_device_at_every_size():
+    from knotmm.engine.copies import copies_refusal
+
+    # the host's measured limits (79 Brownian beads) do not apply on a device platform
+    assert "79 beads" in copies_refusal("plugin", "CPU", 8, "auto", 90, brownian=True)
+    for platform in ("OpenCL", "CUDA"):
+        assert copies_refusal("plugin", platform, 8, "auto", 5000, brownian=True) is None
+        assert "one_after_another" in copies_refusal("plugin", platform, 8, "one_after_another",
+                                                     90)
+    assert "HIP" in copies_refusal("plugin", "HIP", 8, "auto", 30)
+
+
 @pytest.mark.parametrize(("stepping", "together"), [("auto", False), ("together", True)])
 def test_auto_steps_together_only_where_measured_faster(tmp_path, stepping, together):
     # Brownian replicas of 90 beads: one after another was measured faster (auto), unless
