@@ -154,6 +154,21 @@ void CopyBatch::gridOffset(int j, double off[3]) const {
     off[2] = (j / (gridSide * gridSide) - middle) * gridSpacing;
 }
 
+bool CopyBatch::calcForces(ContextImpl& context, const std::function<void()>& placeSites) {
+    try {
+        if (hasVirtualSites)
+            placeSites();
+        context.calcForcesAndEnergy(true, false, context.getIntegrator().getIntegrationForceGroups());
+    }
+    catch (const std::exception& error) {
+        forceError = error.what();
+        if (forceError.empty())
+            forceError = "RPYIntegrator: the force evaluation failed";
+        return false;
+    }
+    return true;
+}
+
 void CopyBatch::fiberEntry(int low, int high) {
     const uintptr_t address = (uintptr_t) (uint32_t) low | ((uintptr_t) (uint32_t) high << 32);
     CopyBatch* batch = reinterpret_cast<CopyBatch*>(address);

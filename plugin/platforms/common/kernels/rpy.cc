@@ -75,9 +75,11 @@ KERNEL void writePositions(GLOBAL real4* RESTRICT posq,
     }
 }
 
-/** com = the mean of the beads' positions (one work group of REDUCE_SIZE). */
-KERNEL void centreOfMass(GLOBAL const double* RESTRICT y, GLOBAL double* RESTRICT com) {
-    LOCAL double part[3*REDUCE_SIZE];
+/**
+ * part[0], part[REDUCE_SIZE], part[2 REDUCE_SIZE] = the sums of the beads' x, y and z, seen by
+ * every work item of the one work group of REDUCE_SIZE that calls it (3 REDUCE_SIZE doubles).
+ */
+DEVICE void sumPositions(GLOBAL const double* RESTRICT y, LOCAL_ARG double* part) {
     double sx = 0, sy = 0, sz = 0;
     for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
         sx += y[3*b];
@@ -96,6 +98,12 @@ KERNEL void centreOfMass(GLOBAL const double* RESTRICT y, GLOBAL double* RESTRIC
         }
     }
     SYNC_THREADS;
+}
+
+/** com = the mean of the beads' positions (one work group of REDUCE_SIZE). */
+KERNEL void centreOfMass(GLOBAL const double* RESTRICT y, GLOBAL double* RESTRICT com) {
+    LOCAL double part[3*REDUCE_SIZE];
+    sumPositions(y, part);
     if (LOCAL_ID == 0) {
         com[0] = part[0]/NUM_BEADS;
         com[1] = part[REDUCE_SIZE]/NUM_BEADS;
@@ -467,24 +475,7 @@ KERNEL void counterNormals(GLOBAL double* RESTRICT out, mm_ulong key, mm_ulong d
 KERNEL void gatherCopy(GLOBAL const double* RESTRICT y, GLOBAL double* RESTRICT all, GLOBAL double* RESTRICT centres,
         int copy) {
     LOCAL double part[3*REDUCE_SIZE];
-    double sx = 0, sy = 0, sz = 0;
-    for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
-        sx += y[3*b];
-        sy += y[3*b+1];
-        sz += y[3*b+2];
-    }
-    part[LOCAL_ID] = sx;
-    part[REDUCE_SIZE+LOCAL_ID] = sy;
-    part[2*REDUCE_SIZE+LOCAL_ID] = sz;
-    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
-        SYNC_THREADS;
-        if (LOCAL_ID < stride) {
-            part[LOCAL_ID] += part[LOCAL_ID+stride];
-            part[REDUCE_SIZE+LOCAL_ID] += part[REDUCE_SIZE+LOCAL_ID+stride];
-            part[2*REDUCE_SIZE+LOCAL_ID] += part[2*REDUCE_SIZE+LOCAL_ID+stride];
-        }
-    }
-    SYNC_THREADS;
+    sumPositions(y, part);  // as centreOfMass sums
     const double cx = part[0]/NUM_BEADS, cy = part[REDUCE_SIZE]/NUM_BEADS, cz = part[2*REDUCE_SIZE]/NUM_BEADS;
     SYNC_THREADS;
     GLOBAL double* RESTRICT out = all+3*(mm_long) copy*NUM_BEADS;

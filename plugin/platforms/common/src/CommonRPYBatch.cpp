@@ -102,17 +102,8 @@ void CommonRPYBatch::evaluate(ContextImpl& context) {
     }
     writeKernel->setArg(cc.getUseMixedPrecision() ? 6 : 5, placeCopies(reach));
     writeKernel->execute(cc.getNumAtoms());
-    try {
-        if (hasVirtualSites)
-            cc.getIntegrationUtilities().computeVirtualSites();
-        context.calcForcesAndEnergy(true, false, context.getIntegrator().getIntegrationForceGroups());
-    }
-    catch (const std::exception& error) {
-        forceError = error.what();
-        if (forceError.empty())
-            forceError = "RPYIntegrator: the force evaluation failed";
+    if (!calcForces(context, [&]() { cc.getIntegrationUtilities().computeVirtualSites(); }))
         return;
-    }
     readForcesKernel->execute(cc.getNumAtoms());
     for (int j = 0; j < count; j++) {
         Copy& c = copyAt(j);

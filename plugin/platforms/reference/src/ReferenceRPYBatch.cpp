@@ -152,17 +152,8 @@ void ReferenceRPYBatch::evaluate(ContextImpl& context) {
             pos[beadParticle[j * n + b]] = Vec3((y[3 * b] - centre[j][0]) + off[0], (y[3 * b + 1] - centre[j][1]) + off[1],
                                                 (y[3 * b + 2] - centre[j][2]) + off[2]);
     }
-    try {
-        if (hasVirtualSites)
-            context.computeVirtualSites();
-        context.calcForcesAndEnergy(true, false, context.getIntegrator().getIntegrationForceGroups());
-    }
-    catch (const std::exception& error) {
-        forceError = error.what();
-        if (forceError.empty())
-            forceError = "RPYIntegrator: the force evaluation failed";
+    if (!calcForces(context, [&]() { context.computeVirtualSites(); }))
         return;
-    }
     const vector<Vec3>& force = *platformData(context).forces;
     for (int j = 0; j < count; j++) {
         if (copyAt(j).state != State::WaitingForVelocity)

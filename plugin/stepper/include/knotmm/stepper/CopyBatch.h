@@ -29,6 +29,7 @@
 
 #include <chrono>
 #include <exception>
+#include <functional>
 #include <memory>
 #include <string>
 #include <ucontext.h>
@@ -82,6 +83,11 @@ protected:
      * copy, its reply = mu(request) F here or in runJobs. On failure: forceError set.
      */
     virtual void evaluate(OpenMM::ContextImpl& context) = 0;
+    /**
+     * The Context's forces of the integration force groups, virtual sites placed first when
+     * the System has them (`placeSites`); false, with forceError set, when that fails.
+     */
+    bool calcForces(OpenMM::ContextImpl& context, const std::function<void()>& placeSites);
     /** Work the waiting copies left for after evaluate (velocities, factors); default none. */
     virtual void runJobs() {}
     /** The grid spacing for copies reaching `reach` (nm) from their centres; also sets spacing(). */
