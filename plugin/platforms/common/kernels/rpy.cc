@@ -48,6 +48,18 @@ KERNEL void readPositions(GLOBAL const real4* RESTRICT posq,
 }
 
 /**
+ * p with its x, y, z = (px, py, pz) as the Context stores positions (its w, the charge, kept);
+ * *c = the float of the remainders (mixed precision splits each number as OpenMM does).
+ */
+inline DEVICE real4 roundedPosition(real4 p, double px, double py, double pz, real4* c) {
+    p.x = (real) px;
+    p.y = (real) py;
+    p.z = (real) pz;
+    *c = make_real4((real) (px - (double) p.x), (real) (py - (double) p.y), (real) (pz - (double) p.z), 0);
+    return p;
+}
+
+/**
  * posq (+ posqCorrection) of the beads = y - shift (shift: 3 doubles, the centre of mass or
  * zeros); the charge (w) is kept. Mixed precision splits each number as OpenMM does: a float
  * and the float of the remainder.
@@ -64,13 +76,10 @@ KERNEL void writePositions(GLOBAL real4* RESTRICT posq,
         if (b < 0)
             continue;
         const double px = y[3*b] - sx, py = y[3*b+1] - sy, pz = y[3*b+2] - sz;
-        real4 p = posq[i];
-        p.x = (real) px;
-        p.y = (real) py;
-        p.z = (real) pz;
-        posq[i] = p;
+        real4 c;
+        posq[i] = roundedPosition(posq[i], px, py, pz, &c);
 #ifdef USE_MIXED_PRECISION
-        posqCorrection[i] = make_real4((real) (px - (double) p.x), (real) (py - (double) p.y), (real) (pz - (double) p.z), 0);
+        posqCorrection[i] = c;
 #endif
     }
 }
@@ -524,13 +533,10 @@ KERNEL void writeCopies(GLOBAL real4* RESTRICT posq,
                 oz = ((double) (j/(side*side))-middle)*spacing;
         const double px = (all[3*g]-centres[4*j])+ox, py = (all[3*g+1]-centres[4*j+1])+oy,
                 pz = (all[3*g+2]-centres[4*j+2])+oz;
-        real4 p = posq[i];
-        p.x = (real) px;
-        p.y = (real) py;
-        p.z = (real) pz;
-        posq[i] = p;
+        real4 c;
+        posq[i] = roundedPosition(posq[i], px, py, pz, &c);
 #ifdef USE_MIXED_PRECISION
-        posqCorrection[i] = make_real4((real) (px - (double) p.x), (real) (py - (double) p.y), (real) (pz - (double) p.z), 0);
+        posqCorrection[i] = c;
 #endif
     }
 }
