@@ -54,6 +54,10 @@ protected:
 private:
     void startThreads();
     std::vector<std::vector<OpenMM::Vec3>> forces;  // each copy's beads' forces at its request
+    // scratch of evaluate and runJobs: each copy's positions and centre, the waiting copies
+    std::vector<const std::vector<double>*> at;
+    std::vector<OpenMM::Vec3> centre;
+    std::vector<int> jobs;
     int threads = 1;                                // the integrator's, over the copies
     std::unique_ptr<OpenMM::ThreadPool> pool;       // made at the first jobs (startThreads)
 #ifdef __linux__

@@ -85,7 +85,7 @@ void ReferenceRPYBatch::startThreads() {
 }
 
 void ReferenceRPYBatch::runJobs() {
-    vector<int> jobs;
+    jobs.clear();  // (a member: nothing is allocated once every copy has waited at once)
     for (int k = 0; k < numCopies(); k++) {
         const Copy& c = copyAt(k);
         if ((c.state == State::WaitingForVelocity && forceError.empty()) || c.state == State::WaitingForFactor)
@@ -123,8 +123,8 @@ void ReferenceRPYBatch::evaluate(ContextImpl& context) {
     // Each copy at its own grid point: its beads shifted to their centre of mass (as one system
     // alone is evaluated), then moved to the point.
     const int count = numCopies();
-    vector<const vector<double>*> at(count);
-    vector<Vec3> centre(count);
+    at.resize(count);
+    centre.resize(count);
     double reach = 0.0;
     for (int j = 0; j < count; j++) {
         const Copy& c = copyAt(j);
