@@ -9,7 +9,9 @@ children's CPU time; ``benchmarks/harness.py``):
     for each ``--variant NAME:KEY=VALUE[;KEY=VALUE]`` (``--set`` keys; default: the defaults),
     and with ``--numba`` the numba yardstick ``numba_chain.py`` (fixed-step Heun, dt = 0.02)
     for D tau_d from the same template, as a whole process, with a warm numba cache (compiled
-    once before timing) and a cold one (a fresh cache folder each time).
+    once before timing) and a cold one (a fresh cache folder each time); with ``--peclet PE
+    --numba-brownian SCHEME:DT`` every run at ``run.peclet = PE`` against the Brownian
+    yardstick ``numba_brownian.py`` (warm cache) at that Peclet number, scheme and step.
 ``startup``
     ``knotmm run --duration 0.5`` against ``python -c "import openmm, numba, mdtraj"``.
 ``replicas``
@@ -34,6 +36,8 @@ children's CPU time; ``benchmarks/harness.py``):
 Run on demand (not part of the tests)::
 
     python benchmarks/bench_workflow.py run --duration 400 --numba            # target (a)
+    python benchmarks/bench_workflow.py run --duration 10 --peclet 2 \\
+        --numba-brownian euler_maruyama:0.002                                 # issue 33
     python benchmarks/bench_workflow.py run --duration 500 --variant default: \\
         --variant checks-off:run.topology_check_interval=0 \\
         --variant reference:run.topology_check_interval=0;run.platform=\\"Reference\\"
@@ -87,9 +91,26 @@ def numba_run(start: Path, duration: float, cache_dir: Path) -> dict:
     return result
 
 
+def numba_brownian_run(start: Path, duration: float, scheme: str, peclet: float,
+                       cache_dir: Path) -> dict:
+    """``numba_brownian.py`` (``SCHEME:DT``) for ``duration`` tau_d at ``peclet``, timed as a
+    whole process."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir))
+    name, _, dt = scheme.partition(":")
+    cmd = [sys.executable, str(harness.HERE / "numba_brownian.py"), "--start", str(start),
+           "--duration", f"{duration:g}", "--scheme", name, "--peclet", f"{peclet:g}"]
+    result = harness.timed(cmd + (["--dt", dt] if dt else []), env=env)
+    if result["rc"] != 0:
+        raise SystemExit(f"numba_brownian failed:\n{result['last']}")
+    return result
+
+
 def cmd_run(args):
     work = args.work
-    variants = harness.parse_variants(args.variant, args.sets)
+    if args.numba_brownian and args.peclet is None:
+        raise SystemExit("--numba-brownian needs --peclet (the Peclet number of both programs)")
+    common = list(args.sets) + ([] if args.peclet is None else [f"run.peclet={args.peclet:g}"])
+    variants = harness.parse_variants(args.variant, common)
     jobs = {f"knotmm[{name}]": partial(harness.knotmm_run, work / "run", args.duration, sets)
             for name, sets in variants}
     if args.numba:
@@ -105,8 +126,19 @@ def cmd_run(args):
 
         jobs["numba (warm cache)"] = partial(numba_run, start, args.duration, warm)
         jobs["numba (cold cache)"] = cold_run
-    print(f"\nknotmm run --duration {args.duration:g} (T(2,3), N = 90)"
-          + (" against numba_chain.py (heun 0.02)" if args.numba else ""))
+    yardstick = f"numba_brownian {args.numba_brownian} (warm cache)"
+    if args.numba_brownian:
+        start = work / "start.npy"
+        np.save(start, harness.template(90))
+        warm = work / "numba_brownian_cache"
+        numba_brownian_run(start, 0.0, args.numba_brownian, args.peclet, warm)  # not timed
+        jobs[yardstick] = partial(numba_brownian_run, start, args.duration,
+                                  args.numba_brownian, args.peclet, warm)
+    print(f"\nknotmm run --duration {args.duration:g} (T(2,3), N = 90"
+          + (f", Pe = {args.peclet:g})" if args.peclet is not None else ")")
+          + (" against numba_chain.py (heun 0.02)" if args.numba else "")
+          + (f" against numba_brownian.py ({args.numba_brownian})" if args.numba_brownian
+             else ""))
     samples = harness.interleave(jobs, args.repeats, log=print)
     summary = _walls(samples)
     for name in samples:
@@ -120,7 +152,12 @@ def cmd_run(args):
                 ratios[f"knotmm[{name}] / {ref}"] = harness.ratio(
                     samples, f"knotmm[{name}]", ref, "wall")
                 print("  " + line)
-    elif len(variants) > 1:
+    if args.numba_brownian:
+        for name, _ in variants:
+            ratios[f"knotmm[{name}] / {yardstick}"] = harness.ratio(
+                samples, f"knotmm[{name}]", yardstick, "wall")
+            print("  " + _ratio_line(samples, f"knotmm[{name}]", yardstick))
+    if not (args.numba or args.numba_brownian) and len(variants) > 1:
         first = f"knotmm[{variants[0][0]}]"
         for name, _ in variants[1:]:
             ratios[f"knotmm[{name}] / {first}"] = harness.ratio(samples, f"knotmm[{name}]",
@@ -376,6 +413,10 @@ def main(argv=None):
     harness.add_options(s, repeats=3)
     s.add_argument("--duration", type=float, default=400.0, help="tau_d")
     s.add_argument("--numba", action="store_true", help="against numba_chain.py")
+    s.add_argument("--peclet", type=float, default=None,
+                   help="run.peclet of every knotmm run (and the numba_brownian program's)")
+    s.add_argument("--numba-brownian", metavar="SCHEME[:DT]", default=None,
+                   help="against numba_brownian.py with this scheme and step (needs --peclet)")
     variants(s)
     s.set_defaults(func=cmd_run)
 

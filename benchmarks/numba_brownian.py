@@ -4,9 +4,10 @@ The Brownian counterpart of ``numba_chain.py`` (whose force and mobility kernels
 the same model, model units d = F0 = mu0 = 1) at a finite Peclet number ``Pe``, ``kT = 1/Pe``
 in F0 d. The noise is exact: ``B xi`` with ``B = L`` the lower Cholesky factor of the dense
 3N x 3N Rotne-Prager-Yamakawa mobility (``np.linalg.cholesky`` inside numba, which calls
-LAPACK's ``dpotrf`` through scipy), ``xi`` standard normal drawn by numba. Two schemes, those
+LAPACK's ``dpotrf`` through scipy), ``xi`` standard normal drawn by numba. Three schemes, those
 of ``knotmm.dynamics.brownian`` (``v = mu F``)::
 
+    euler_maruyama       y1 = y + h v(y) + sqrt(2 kT h) L(y) xi         (default h = 0.002)
     ito_heun             W = sqrt(2 kT h) L(y) xi;  y* = y + h v(y) + W;
                          y1 = y + h/2 (v(y) + v(y*)) + W                 (default h = 0.002)
     leimkuhler_matthews  p = y + h v(y) + k;  k <- sqrt(kT h / 2) L(p) xi;  y1 = p + k
@@ -41,7 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # numba_chain.py sits 
 from numba_chain import STUDY, forces, mobility, parameters, read_start  # noqa: E402
 
 #: Scheme name -> default step (tau_d), as knotmm's registry.
-SCHEMES = {"ito_heun": 0.002, "leimkuhler_matthews": 0.01}
+SCHEMES = {"euler_maruyama": 0.002, "ito_heun": 0.002, "leimkuhler_matthews": 0.01}
 
 
 @numba.njit(cache=True)
@@ -102,6 +103,31 @@ def noise(x, z, scale, m, out):
     for i in range(x.shape[0]):
         for k in range(3):
             out[i, k] = scale * w[3 * i + k]
+
+
+@numba.njit(cache=True)
+def euler_maruyama(x, p, kt, dt, steps, seed, xi):
+    """``steps`` Euler-Maruyama steps of ``dt`` from ``x`` (N, 3): one force evaluation and
+    one Cholesky factorisation a step; returns the new positions (``xi``: as :func:`ito_heun`).
+    """
+    np.random.seed(seed)
+    n = x.shape[0]
+    y = x.copy()
+    f = np.empty_like(y)
+    v = np.empty_like(y)
+    w = np.empty_like(y)
+    z = np.empty(3 * n)
+    m = np.empty((3 * n, 3 * n))
+    scale = math.sqrt(2.0 * kt * dt)
+    for s in range(steps):
+        draw(xi, s, z)
+        noise(y, z, scale, m, w)
+        forces(y, p, f)
+        mobility(y, f, v)
+        for i in range(n):
+            for k in range(3):
+                y[i, k] += dt * v[i, k] + w[i, k]
+    return y
 
 
 @numba.njit(cache=True)
@@ -171,10 +197,12 @@ def leimkuhler_matthews(x, p, kt, dt, steps, seed, xi):
 
 
 def run(scheme, x, p, kt, dt, steps, seed=0, xi=None):
-    """Dispatch to :func:`ito_heun` or :func:`leimkuhler_matthews` (``xi`` None: draw)."""
+    """Dispatch to :func:`euler_maruyama`, :func:`ito_heun` or :func:`leimkuhler_matthews`
+    (``xi`` None: draw)."""
     if xi is None:
         xi = np.empty((0, 3 * x.shape[0]))
-    fn = {"ito_heun": ito_heun, "leimkuhler_matthews": leimkuhler_matthews}[scheme]
+    fn = {"euler_maruyama": euler_maruyama, "ito_heun": ito_heun,
+          "leimkuhler_matthews": leimkuhler_matthews}[scheme]
     return fn(np.ascontiguousarray(x, dtype=np.float64), p, float(kt), float(dt), int(steps),
               int(seed), np.ascontiguousarray(xi, dtype=np.float64))
 
@@ -186,7 +214,7 @@ def per_call(fn, budget=0.5, batches=5, clock=time.perf_counter):
     out = []
     for _ in range(batches):
         calls, t0 = 0, clock()
-        while clock() - t0 < budget / batches:
+        while calls == 0 or clock() - t0 < budget / batches:  # at least one call
             fn()
             calls += 1
         out.append((clock() - t0) / calls)

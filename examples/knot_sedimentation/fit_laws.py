@@ -3,11 +3,15 @@
 Usage::
 
     python examples/knot_sedimentation/fit_laws.py [[LABEL=]DIR ...] [--out DIR] [--boot B]
+    python examples/knot_sedimentation/fit_laws.py --rerun
 
-Without ``DIR`` it reads the 16 saved sets of ``results/`` (the labels of the README). Each
-``DIR`` holds a ``replicas.json`` (``knotmm analyze``) whose points differ in ``knot.name``
-and which holds the unknot ``0_1``. It writes ``OUT/laws.csv`` (one row per set, law,
-degree and point set) and ``OUT/laws.md`` (default OUT: ``results`` beside this script).
+Without ``DIR`` it reads the 16 saved sets of ``results/`` (the labels of the README), with
+``--rerun`` the 16 saved sets of the thermal runs at the designed 200 tau_d
+(:data:`RERUN_SETS`; default OUT ``results/rerun_200``). Each ``DIR`` holds a
+``replicas.json`` (``knotmm analyze``) whose points differ in ``knot.name`` and which holds
+the unknot ``0_1``. It writes ``OUT/laws.csv`` (one row per set, law, degree and point set)
+and ``OUT/laws.md`` (default OUT: ``results`` beside this script); ``laws.md`` ends with
+the straight lines' chi^2 summed over the sets that share a window (:func:`pooled`).
 
 The data of a set: per knot type i the replicas' mean sedimentation speed ``V_i`` and its
 standard error ``s_i`` (d / tau_d), and the mean ``x_i`` of the law's variable over the
@@ -71,6 +75,13 @@ SETS = tuple(
     for rep in ("rep", "norep") for n in (120, 90)
     for pe, d in (("Pe=inf 20-70", "pe_inf_early"), ("Pe=inf 150-200", "pe_inf_late"),
                   ("Pe=10", "pe10"), ("Pe=1", "pe1")))
+#: The 16 saved sets of the thermal runs at the designed 200 tau_d (README, "The thermal
+#: sets at their designed 200 tau_d"): each sweep on its late window and on the old one.
+RERUN_SETS = tuple(
+    (f"N{n} {rep} Pe={pe} {w}",
+     f"n{n}_{rep}_pe{pe}_200_{d}")
+    for pe in (10, 1) for rep in ("rep", "norep") for n in (120, 90)
+    for w, d in (("150-200", "late"), ("50-100", "mid")))
 COLUMNS = ("set", "law", "degree", "points", "n", "dof", "c0", "c0_se", "c1", "c1_se",
            "c1_se_scaled", "c2", "c2_se", "chi2", "chi2_dof", "p", "p_sim", "f_quad", "p_quad",
            "r2", "r2_lo", "r2_hi", "v0", "v0_rel_se")
@@ -281,13 +292,18 @@ def bootstrap_r2(reps, law: str, names, degree: int, mask, draws: int, rng) -> n
 
 
 def simulated_p(fit: dict, sy, sx, cxy, counts, chi2: float, draws: int, rng) -> float:
-    """p-value of ``chi2`` with the points' errors themselves estimated from the replicas.
+    """p-value of ``chi2`` with the points' errors themselves estimated from the replicas:
+    the fraction of :func:`simulated_chi2`'s sets whose chi^2 is at least ``chi2``
+    (dimensionless; at best ``1 / draws`` resolution)."""
+    return float(np.mean(simulated_chi2(fit, sy, sx, cxy, counts, draws, rng) >= chi2))
 
-    ``draws`` sets are simulated under the fitted curve: per point ``counts[i]`` replicas,
-    Gaussian, centred on ``(x_i, f(x_i))`` with the observed covariance of one replica
-    (``counts[i]`` times that of the mean); each set's means, standard errors and
-    covariances are refitted like the data. Returns the fraction whose chi^2 is at least
-    ``chi2`` (dimensionless; at best ``1 / draws`` resolution).
+
+def simulated_chi2(fit: dict, sy, sx, cxy, counts, draws: int, rng) -> np.ndarray:
+    """chi^2 of ``draws`` sets simulated under the fitted curve, shape (draws,).
+
+    Per point ``counts[i]`` replicas, Gaussian, centred on ``(x_i, f(x_i))`` with the
+    observed covariance of one replica (``counts[i]`` times that of the mean); each set's
+    means, standard errors and covariances are refitted like the data.
 
     Parameters
     ----------
@@ -312,11 +328,8 @@ def simulated_p(fit: dict, sy, sx, cxy, counts, chi2: float, draws: int, rng) ->
         cols.append((ys.mean(1), ys.std(1, ddof=1) / math.sqrt(n), xs.mean(1),
                      xs.std(1, ddof=1) / math.sqrt(n), cov / (n - 1) / n))
     ym, ys_, xm, xs_, cv = (np.array(col).T for col in zip(*cols, strict=True))
-    exceed = 0
-    for k in range(draws):
-        sim = weighted_fit(xm[k], ym[k], ys_[k], degree, xs_[k], cv[k])
-        exceed += sim["chi2"] >= chi2
-    return exceed / draws
+    return np.array([weighted_fit(xm[k], ym[k], ys_[k], degree, xs_[k], cv[k])["chi2"]
+                     for k in range(draws)])
 
 
 def fit_set(label: str, knots: dict, draws: int = 2000, sims: int = 400,
@@ -359,8 +372,9 @@ def fit_set(label: str, knots: dict, draws: int = 2000, sims: int = 400,
                        "v0_rel_se": v0_rel}
                 if degree == 1:
                     linear = fit
-                    row["p_sim"] = simulated_p(fit, sy[mask], sx[mask], cxy[mask],
-                                               counts[mask], fit["chi2"], sims, rng)
+                    row["sims"] = simulated_chi2(fit, sy[mask], sx[mask], cxy[mask],
+                                                 counts[mask], sims, rng)
+                    row["p_sim"] = float(np.mean(row["sims"] >= fit["chi2"]))
                 else:
                     f = (linear["chi2"] - fit["chi2"]) / (fit["chi2"] / fit["dof"])
                     row["f_quad"], row["p_quad"] = f, float(stats.f.sf(f, 1, fit["dof"]))
@@ -433,14 +447,50 @@ def markdown(rows: list[dict]) -> str:
     out.append(f"Verdicts over the 6 knots (rejected: simulated p < {REJECTED}; strained: "
                f"< {STRAINED}; laws by increasing chi^2):\n\n")
     out.append("\n".join(summary(rows)) + "\n")
+    out += pooled(rows)
     return "".join(out)
+
+
+def window(label: str) -> str:
+    """The group a set is pooled in: the last word of its label (its window or Pe)."""
+    return label.split()[-1]
+
+
+def pooled(rows: list[dict], which: str = "knots") -> list[str]:
+    """Straight lines summed over the sets of each group (:func:`window`) with two or more
+    sets: per law the sum of chi^2 and of the degrees of freedom, the chi^2 p-value, and the
+    simulated p-value of the sum (the sets are independent runs: draw k of every set's
+    :func:`simulated_chi2` summed; resolution 1 / draws)."""
+    by = {(r["set"], r["law"], r["points"]): r for r in rows if r["degree"] == 1}
+    groups: dict[str, list[str]] = {}
+    for label in dict.fromkeys(r["set"] for r in rows):
+        groups.setdefault(window(label), []).append(label)
+    groups = {g: labels for g, labels in groups.items() if len(labels) > 1}
+    if not groups:
+        return []
+    out = ["\nStraight lines over the 6 knots summed over the sets of a group (the last word "
+           "of their labels): chi^2 / dof (p from chi^2 / p simulated)\n\n| group | sets | "
+           + " | ".join(LAWS) + " |\n|---|---|" + "---|" * len(LAWS) + "\n"]
+    for g, labels in groups.items():
+        cells = []
+        for law in LAWS:
+            sets = [by[(label, law, which)] for label in labels]
+            chi2 = sum(r["chi2"] for r in sets)
+            dof = sum(r["dof"] for r in sets)
+            sims = np.sum([r["sims"] for r in sets], axis=0)
+            p_sim = float(np.mean(sims >= chi2))
+            cells.append(f"{chi2:.1f} / {dof} ({_p(float(stats.chi2.sf(chi2, dof)), 1e-4)} / "
+                         f"{_p(p_sim)})")
+        out.append(f"| {g} | {len(labels)} | " + " | ".join(cells) + " |\n")
+    return out
 
 
 def write(rows: list[dict], out: Path) -> None:
     """``out/laws.csv`` (6 significant digits) and ``out/laws.md``."""
     out.mkdir(parents=True, exist_ok=True)
     with (out / "laws.csv").open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=COLUMNS, lineterminator="\n")
+        writer = csv.DictWriter(fh, fieldnames=COLUMNS, lineterminator="\n",
+                                extrasaction="ignore")  # not the simulated chi^2
         writer.writeheader()
         for row in rows:
             writer.writerow({k: (("nan" if not math.isfinite(v) else f"{v:.6g}")
@@ -455,10 +505,18 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=HERE / "results",
                     help="where laws.csv and laws.md go (default: results/)")
     ap.add_argument("--boot", type=int, default=2000, help="replica resamplings (default 2000)")
+    ap.add_argument("--rerun", action="store_true",
+                    help="the 16 saved sets of the 200 tau_d thermal runs instead (default "
+                         "--out: results/rerun_200/)")
     args = ap.parse_args(argv)
     if args.boot < 10:
         _fail(f"--boot {args.boot}: give at least 10 resamplings")
-    items = [(label, HERE / "results" / d) for label, d in SETS] if not args.sets else [
+    if args.rerun and args.sets:
+        _fail("--rerun reads the saved sets: give no DIR with it")
+    saved = RERUN_SETS if args.rerun else SETS
+    if args.rerun and args.out == HERE / "results":
+        args.out = HERE / "results" / "rerun_200"
+    items = [(label, HERE / "results" / d) for label, d in saved] if not args.sets else [
         (s.rpartition("=")[0] or Path(s).name, Path(s.rpartition("=")[2])) for s in args.sets]
     rows = [row for label, knots in read_sets(items)
             for row in fit_set(label, knots, draws=args.boot)]

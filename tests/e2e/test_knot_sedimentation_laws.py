@@ -227,3 +227,48 @@ def test_simulated_p_is_calibrated_with_errors_from_8_replicas(fl, rng):
         low_chi2 += fit["p"] < 0.1
     assert 0.04 < low_sim / sets < 0.17
     assert low_chi2 > low_sim
+
+
+def _rows_of(fl, label, chi2, dof, sims):
+    return [{"set": label, "law": law, "degree": 1, "points": "knots", "chi2": chi2, "dof": dof,
+             "sims": sims} for law in fl.LAWS]
+
+
+def test_pooled_sum_of_sets_is_the_chi2_law_of_the_summed_dof(fl, rng):
+    """Independent sets whose simulated chi^2 follow the chi^2 law: the summed chi^2 is the
+    chi^2 law with the summed degrees of freedom (closed form), and the pooled simulated p
+    (draws summed index by index) is its survival function."""
+    dofs, chi2s, draws = (4, 4, 3), (6.0, 2.5, 5.0), 20000
+    rows = []
+    for i, (dof, chi2) in enumerate(zip(dofs, chi2s, strict=True)):
+        rows += _rows_of(fl, f"set{i} 150-200", chi2, dof, rng.chisquare(dof, draws))
+    rows += _rows_of(fl, "alone 50-100", 1.0, 4, rng.chisquare(4, draws))  # a group of one
+    lines = [line for line in "".join(fl.pooled(rows)).splitlines() if line.startswith("| ")]
+    assert len(lines) == 2 and lines[1].startswith("| 150-200 | 3 |")
+    total = sum(chi2s)
+    exact = stats.chi2.sf(total, sum(dofs))
+    cell = lines[1].split(" | ")[2]  # the ACN column
+    assert cell.startswith(f"{total:.1f} / {sum(dofs)} ")
+    p_chi2, p_sim = (float(v) for v in cell.split("(")[1].rstrip(")").split(" / "))
+    assert p_chi2 == pytest.approx(exact, rel=0.01)
+    assert p_sim == pytest.approx(exact, abs=0.01)
+    assert fl.pooled(_rows_of(fl, "one 150-200", 1.0, 4, np.ones(5))) == []
+
+
+def test_saved_rerun_laws_are_what_the_script_makes(fl, tmp_path):
+    """results/rerun_200: the fits of the 200 tau_d thermal sets, remade from the saved
+    replicas.json of every set that RERUN_SETS names."""
+    assert len(fl.RERUN_SETS) == 16
+    assert fl.main(["--rerun", "--out", str(tmp_path)]) == 0
+    saved = FOLDER / "results" / "rerun_200"
+    made, kept = _rows(tmp_path / "laws.csv"), _rows(saved / "laws.csv")
+    assert len(made) == len(kept) == 16 * len(fl.LAWS) * 2 * 2
+    for m, s in zip(made, kept, strict=True):
+        bad = [k for k in m if not _same(m[k], s[k])]
+        assert not bad, (m["set"], m["law"], bad)
+    assert (tmp_path / "laws.md").read_text() == (saved / "laws.md").read_text()
+    readme = (FOLDER / "README.md").read_text()
+    assert "fit_laws.py --rerun" in readme
+    for line in (saved / "laws.md").read_text().splitlines():
+        if line.startswith("- N"):
+            assert line in readme, line

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from knotmm.dynamics.brownian import ItoHeun, LeimkuhlerMatthews
+from knotmm.dynamics.brownian import EulerMaruyama, ItoHeun, LeimkuhlerMatthews
 from knotmm.dynamics.mobility import rpy_matrix
 from knotmm.dynamics.noise import cholesky_noise
 from knotmm.engine.simulation import Simulation
@@ -62,7 +62,8 @@ class _Fed:
         return cholesky_noise(y, xi=next(self.xi))
 
 
-@pytest.mark.parametrize("scheme, cls, dt", [("ito_heun", ItoHeun, 0.002),
+@pytest.mark.parametrize("scheme, cls, dt", [("euler_maruyama", EulerMaruyama, 0.002),
+                                             ("ito_heun", ItoHeun, 0.002),
                                              ("leimkuhler_matthews", LeimkuhlerMatthews, 0.01)])
 def test_steps_equal_knotmm_with_the_same_normals(nb, scheme, cls, dt):
     """20 steps from the N = 90 template at Pe = 2 (gravity on), Reference platform:
