@@ -123,3 +123,14 @@ def test_command_line_prints_one_summary(nb, tmp_path, capsys):
     out = capsys.readouterr().out.strip().splitlines()
     assert len(out) == 1
     assert "N=40 leimkuhler_matthews dt=0.01 Pe=2 steps=10" in out[0]
+
+
+def test_probe_heun_baseline_samples_boltzmann(nb):
+    """benchmarks/probe_fsal_brownian.py: its adaptive Heun branch (the plugin's
+    ito_heun_adaptive control, re-written in numba) gives the Boltzmann bond-length variance
+    at Pe = 2, tolerance 0.02 d, within 3 % (the baseline its one-evaluation variant is
+    compared with)."""
+    probe = _load("probe_fsal_brownian")
+    ratio, se, steps, evals = probe.main(["2", "0.02", "0", "12", "3"])
+    assert abs(ratio - 1.0) < max(0.03, 4 * se), (ratio, se)
+    assert 2 * steps < evals < 2.2 * steps  # two a step, one more per rejected try
