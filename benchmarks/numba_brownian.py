@@ -106,6 +106,13 @@ def noise(x, z, scale, m, out):
 
 
 @numba.njit(cache=True)
+def velocity(y, p, f, v):
+    """``v = mu(y) F(y)`` (N, 3); ``f`` (N, 3) a work array for the forces."""
+    forces(y, p, f)
+    mobility(y, f, v)
+
+
+@numba.njit(cache=True)
 def euler_maruyama(x, p, kt, dt, steps, seed, xi):
     """``steps`` Euler-Maruyama steps of ``dt`` from ``x`` (N, 3): one force evaluation and
     one Cholesky factorisation a step; returns the new positions (``xi``: as :func:`ito_heun`).
@@ -122,8 +129,7 @@ def euler_maruyama(x, p, kt, dt, steps, seed, xi):
     for s in range(steps):
         draw(xi, s, z)
         noise(y, z, scale, m, w)
-        forces(y, p, f)
-        mobility(y, f, v)
+        velocity(y, p, f, v)
         for i in range(n):
             for k in range(3):
                 y[i, k] += dt * v[i, k] + w[i, k]
@@ -151,13 +157,11 @@ def ito_heun(x, p, kt, dt, steps, seed, xi):
     for s in range(steps):
         draw(xi, s, z)
         noise(y, z, scale, m, w)
-        forces(y, p, f)
-        mobility(y, f, v0)
+        velocity(y, p, f, v0)
         for i in range(n):
             for k in range(3):
                 ys[i, k] = y[i, k] + dt * v0[i, k] + w[i, k]
-        forces(ys, p, f)
-        mobility(ys, f, v1)
+        velocity(ys, p, f, v1)
         for i in range(n):
             for k in range(3):
                 y[i, k] += 0.5 * dt * (v0[i, k] + v1[i, k]) + w[i, k]
@@ -183,8 +187,7 @@ def leimkuhler_matthews(x, p, kt, dt, steps, seed, xi):
     draw(xi, 0, z)
     noise(y, z, scale, m, kick)
     for s in range(steps):
-        forces(y, p, f)
-        mobility(y, f, v)
+        velocity(y, p, f, v)
         for i in range(n):
             for k in range(3):
                 y[i, k] += dt * v[i, k] + kick[i, k]  # y is now p

@@ -26,17 +26,10 @@ import numba
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the numba yardsticks sit here
-from numba_brownian import cholesky, rpy_matrix  # noqa: E402
-from numba_chain import forces, mobility, parameters  # noqa: E402
+from numba_brownian import cholesky, rpy_matrix, velocity  # noqa: E402
+from numba_chain import parameters  # noqa: E402
 
 from knotmm.shapes import torus_knot  # noqa: E402
-
-
-@numba.njit(cache=True)
-def velocity(y, p, f, v):
-    """``v = mu(y) F(y)`` (N, 3); ``f`` a work array."""
-    forces(y, p, f)
-    mobility(y, f, v)
 
 
 @numba.njit(cache=True)
