@@ -7,14 +7,15 @@ the seeds of a sweep's ensembles too), so replica k equals a single run with tha
 for bit when it runs alone, and adding replicas keeps the seeds of the others. Nothing
 couples the copies' physics: each has its own System, Context, noise and step control.
 
-Where the plugin can (:func:`knotmm.engine.copies.copies_refusal`: the plugin engine on the
-CPU or Reference platform) the replicas run side by side, each in a thread, and their steps
-are taken together by a :class:`knotmm.engine.copies.CopyGroup`: K copies of the system in
-one Context, one force evaluation for all, each copy its own steps; replica k then equals
-the single run to rounding. Elsewhere they run one after another. Either way the process
-pays the start-up of Python, OpenMM, the plugin and numba once instead of K times
-(``benchmarks/bench_workflow.py replicas`` measures it against K single runs); the choice
-and its reason are in ``replicas.toml`` (``stepping``, ``stepping_reason``).
+Where the plugin can (:func:`knotmm.engine.copies.copies_refusal`: the plugin engine on a
+platform that holds copies, systems small enough) the replicas run side by side, each in a
+thread, and their steps are taken together by a :class:`knotmm.engine.copies.CopyGroup`: K
+copies of the system in one Context, one force evaluation for all, each copy its own steps;
+replica k then equals the single run to rounding. Elsewhere they run one after another.
+Either way the process pays the start-up of Python, OpenMM, the plugin and numba once
+instead of K times (``benchmarks/bench_workflow.py replicas`` measures it against K single
+runs); the choice and its reason are in ``replicas.toml`` (``stepping``,
+``stepping_reason``) and in each replica's run.toml (``replica_stepping``).
 
 A replica whose dynamics breaks down (:class:`knotmm.errors.SimulationFault`) is recorded
 as a fault in its run.toml and the others go on; a file that cannot be written (a full disk)
@@ -37,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from knotmm.config import RunConfig
-from knotmm.engine.copies import MAX_TOGETHER, copies_refusal, run_together
+from knotmm.engine.copies import MAX_TOGETHER, OneAfterAnother, copies_refusal, run_together
 from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault
 from knotmm.io.replica_set import (
     REPLICA_SET_FILE,
@@ -382,7 +383,8 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
             try:
                 results.append(_one(k, lambda sub=sub, where=where: run(
                     sub, directory=where, overwrite=overwrite, progress=progress,
-                    wait_for_checks=wait_for_checks), errors, root))
+                    wait_for_checks=wait_for_checks, copies=OneAfterAnother(refusal)),
+                    errors, root))
             except (ValueError, RunDirectoryError):  # refused: a live owner of replica_0, ...
                 if k == 0:  # nothing run yet: leave no half-made set behind
                     _undo_start(root, lock, previous)
@@ -433,6 +435,7 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     errors: dict[int, str] = {}
     results: list[RunResult | None] = []
     together = record["replicas"].get("stepping") == "together" and len(seeds) > 1
+    alone = OneAfterAnother(record["replicas"].get("stepping_reason", "one after another"))
     try:
         if together:
             results = _together(len(seeds), lambda k, copies: _resume_one(
@@ -448,14 +451,14 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
                 sub = _replica_config(cfg, seed, where)
                 results.append(_one(k, lambda sub=sub, where=where: run(
                     sub, directory=where, overwrite=True, progress=progress,
-                    wait_for_checks=wait_for_checks), errors, root))
+                    wait_for_checks=wait_for_checks, copies=alone), errors, root))
                 continue
             if _reached(facts, target):
                 results.append(_finished(where, facts))
                 continue
             results.append(_one(k, lambda where=where: resume(
                 where, progress=progress, duration=duration,
-                wait_for_checks=wait_for_checks), errors, root))
+                wait_for_checks=wait_for_checks, copies=alone), errors, root))
         if duration is not None:
             refusal = None if together else record["replicas"].get(
                 "stepping_reason", "one after another")

@@ -170,8 +170,10 @@ def run(
         (topoly's import, seconds). By default they are waited for only once it is up, else
         recorded as not made (``knot_type_checks_dropped``, a note for the template), so a
         short run does not wait for topoly; ``run.on_topology_change = "stop"`` always waits.
-    copies : tuple, optional
-        ``(group, k)``: replica ``k`` of a :class:`knotmm.engine.copies.CopyGroup`.
+    copies : tuple or OneAfterAnother, optional
+        ``(group, k)``: replica ``k`` of a :class:`knotmm.engine.copies.CopyGroup`; a
+        :class:`knotmm.engine.copies.OneAfterAnother`: a replica of a set run one after
+        another (run.toml's ``replica_stepping`` gives the reason).
 
     Returns
     -------

@@ -46,7 +46,7 @@ import numpy as np
 from knotmm.engine.interrupt import StopRequested, request_stop, stop_signal, take_stop_request
 
 __all__ = ["COPY_PLATFORMS", "HOST_PLATFORMS", "MAX_TOGETHER", "TOGETHER_MAX_BEADS", "CopyGroup",
-           "copies_refusal", "enter_group", "leave_group", "run_together"]
+           "copies_refusal", "enter_group", "leave_group", "run_together", "OneAfterAnother"]
 
 log = logging.getLogger(__name__)
 
@@ -185,10 +185,21 @@ def _wait(threads, ended: threading.Semaphore, failures: dict) -> None:
         failures.setdefault(-1, interrupted)
 
 
+class OneAfterAnother:
+    """A replica of a set that is not stepped together, with the reason
+    (:func:`copies_refusal`): what its run.toml's ``replica_stepping`` says."""
+
+    def __init__(self, reason: str):
+        self.reason = reason
+
+
 def enter_group(copies, sim, facts: dict) -> None:
-    """A run as replica ``k`` of ``copies = (group, k)`` (None: a run alone): it joins the
-    group, and ``facts`` (its run.toml's) record how it is stepped."""
-    if copies is not None:
+    """A run as replica ``k`` of ``copies = (group, k)`` (None: a run alone; a
+    :class:`OneAfterAnother`: a replica run on its own): it joins the group, and ``facts``
+    (its run.toml's) record how it is stepped."""
+    if isinstance(copies, OneAfterAnother):
+        facts["replica_stepping"] = f"one after another: {copies.reason}"
+    elif copies is not None:
         group, k = copies
         facts["replica_stepping"] = (f"together: copy {k} of {group.count} in one Context"
                                      if group.join(k, sim, facts) else "alone")
@@ -196,7 +207,7 @@ def enter_group(copies, sim, facts: dict) -> None:
 
 def leave_group(copies) -> None:
     """The run of :func:`enter_group` ended (however it ended)."""
-    if copies is not None:
+    if copies is not None and not isinstance(copies, OneAfterAnother):
         copies[0].leave(copies[1])
 
 

@@ -118,7 +118,10 @@ def _computing():
 
 
 def _run_point(task: Mapping[str, Any]) -> dict[str, Any]:
-    outcome = _simulate(task)
+    from knotmm.engine.copies import OneAfterAnother
+
+    why = task.get("stepping")  # a replica whose point's replicas run one by one
+    outcome = _simulate(task, None if why is None else OneAfterAnother(why))
     if outcome is None:
         return _interrupted(task["name"])
     return _analyse(task, *outcome)
@@ -127,7 +130,8 @@ def _run_point(task: Mapping[str, Any]) -> dict[str, Any]:
 def _simulate(task: Mapping[str, Any], copies=None) -> tuple[str, str | None] | None:
     """Run or resume the point's simulation: ``(status, error)``, or None if interrupted.
     ``copies``: ``(group, k)`` where the point is copy k of a
-    :class:`~knotmm.engine.copies.CopyGroup` (:func:`run_group`)."""
+    :class:`~knotmm.engine.copies.CopyGroup` (:func:`run_group`), a
+    :class:`~knotmm.engine.copies.OneAfterAnother` where it is a replica run on its own."""
     from knotmm.errors import SimulationFault
 
     name = task["name"]

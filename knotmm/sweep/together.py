@@ -69,8 +69,10 @@ def group_tasks(tasks: Sequence[Mapping[str, Any]], keys: Mapping[str, tuple],
     Returns
     -------
     list of dict
-        Single tasks as they were, and group tasks ``{"name", "members"}`` (the members in
-        replica order; a member ``"skip"`` is run and reported by nobody).
+        Single tasks as they were (a replica whose point's replicas cannot be stepped
+        together with ``"stepping"``: the reason), and group tasks ``{"name",
+        "members"}`` (the members in replica order; a member ``"skip"`` is run and reported
+        by nobody).
     """
     order = {name: i for i, name in enumerate(keys)}
     everyone: dict[tuple, list] = {}
@@ -87,6 +89,8 @@ def group_tasks(tasks: Sequence[Mapping[str, Any]], keys: Mapping[str, tuple],
             together[key] = members
         else:
             log.info("the replicas of %s run one by one: %s", first["name"], why)
+            for task in members:  # the reason goes into each replica's run.toml
+                task["stepping"] = why
     if not together:
         return list(tasks)
     parts = 1

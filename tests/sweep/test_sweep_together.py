@@ -61,8 +61,10 @@ def test_one_after_another_keeps_one_run_per_replica(tmp_path):
     data = sweep_file(tmp_path / "sweep", seeds=2, replica_stepping="one_after_another")
     result = run_sweep(Sweep.from_dict(data), workers=0, progress=False)
     assert [r["status"] for r in result.rows] == ["finished"] * 4, result.report()
-    for row in result.rows:
-        assert _stepping(result.directory / row["directory"]) in ("", "one_after_another")
+    for row in result.rows:  # each replica's run.toml says how it ran, and why
+        assert _stepping(result.directory / row["directory"]) == (
+            'one after another: run.replica_stepping = "one_after_another" (each equals its '
+            'single run bit for bit)')
 
 
 def test_the_python_engine_runs_each_replica_alone(tmp_path):
@@ -70,7 +72,8 @@ def test_the_python_engine_runs_each_replica_alone(tmp_path):
     result = run_sweep(Sweep.from_dict(data), workers=0, progress=False)
     assert [r["status"] for r in result.rows] == ["finished"] * 4, result.report()
     for row in result.rows:
-        assert not _stepping(result.directory / row["directory"]).startswith("together")
+        assert _stepping(result.directory / row["directory"]) == (
+            "one after another: the Python engine steps one system at a time")
 
 
 def _tasks(points: int, seeds: int, action="run"):

@@ -95,7 +95,9 @@ def test_one_after_another_replicas_equal_single_runs_bit_for_bit(tmp_path):
                                                  "replica_stepping": "one_after_another"}}),
         directory=single, progress=False)
     np.testing.assert_array_equal(_xyz(tmp_path / "set" / "replica_1"), _xyz(single))
-    assert "replica_stepping" not in read_facts(tmp_path / "set" / "replica_1")
+    stepping = read_facts(tmp_path / "set" / "replica_1")["replica_stepping"]
+    assert stepping == f"one after another: {record['stepping_reason']}"
+    assert "replica_stepping" not in read_facts(single)  # a run alone says nothing
 
 
 @pytest.mark.parametrize("platform", [p for p in DEVICE_PLATFORMS if p in _PLATFORMS] or [
@@ -146,6 +148,9 @@ def test_auto_steps_together_only_where_measured_faster(tmp_path, stepping, toge
     if not together:
         assert "measured faster one after another" in record["stepping_reason"]
         assert "79 beads" in record["stepping_reason"]
+        for k in range(2):  # and each replica's run.toml says so
+            facts = read_facts(tmp_path / "set" / f"replica_{k}")
+            assert facts["replica_stepping"].startswith("one after another: measured faster")
 
 
 def test_a_large_set_steps_in_groups_one_after_another(tmp_path, monkeypatch, brownian_set):
