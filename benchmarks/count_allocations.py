@@ -18,10 +18,11 @@ from __future__ import annotations
 import argparse
 import ctypes
 import os
-import subprocess
 import sys
-import tempfile
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # preload_shim.py sits here
+from preload_shim import rerun_with_shim  # noqa: E402
 
 SHIM = r"""
 #define _GNU_SOURCE
@@ -140,14 +141,8 @@ def main(argv=None) -> int:
     if os.environ.get("KNOTMM_ALLOC_SHIM"):
         measure(args.beads)
         return 0
-    with tempfile.TemporaryDirectory() as tmp:
-        source, shim = Path(tmp) / "alloc_shim.c", Path(tmp) / "alloc_shim.so"
-        source.write_text(SHIM)
-        subprocess.run(["cc", "-O2", "-shared", "-fPIC", str(source), "-o", str(shim), "-ldl"],
-                       check=True)
-        env = dict(os.environ, LD_PRELOAD=str(shim), KNOTMM_ALLOC_SHIM="1")
-        return subprocess.run([sys.executable, __file__, *(argv or sys.argv[1:])],
-                              env=env).returncode
+    return rerun_with_shim(SHIM, "alloc_shim", "KNOTMM_ALLOC_SHIM", __file__,
+                           argv if argv is not None else sys.argv[1:])
 
 
 if __name__ == "__main__":

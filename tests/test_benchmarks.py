@@ -22,7 +22,7 @@ README = BENCH / "README.md"
 STANDALONE = {"harness", "numba_chain", "numba_brownian", "count_allocations",
               "count_launches", "probe_fsal_brownian"}
 #: Modules that scripts import (not run themselves).
-MODULES = {"force_layouts"}
+MODULES = {"force_layouts", "preload_shim"}
 #: Where the repository names benchmark scripts.
 REFERRING = ["README.md", "plugin/README.md", "docs", "examples", "knotmm", "tests",
              "benchmarks"]
