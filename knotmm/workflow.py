@@ -511,61 +511,64 @@ def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lo
             message = " ".join(f"{type(exc).__name__}: {exc}".split())
         raise
     finally:
-        leave_group(copies)
-        _close(dcd, obs, bar)
-        if watch is not None:
-            # an interrupted run must end promptly (a sweep repeats its stop signal every
-            # second): checks still under way are dropped; the next one after resume sees
-            # any change they would have seen
-            watch.close(wait=status != STATUS_INTERRUPTED)
-        wall = time.perf_counter() - wall0
-        velocity = (z0 - float(sim.positions[:, 2].mean())) / sim.time if sim.time > 0 else 0.0
-        frames = dcd.index if dcd is not None else int(counters["frames"])
-        result = RunResult(
-            directory=directory,
-            time=sim.time,
-            steps=sim.currentStep,
-            evaluations=sim.n_evaluations,
-            rejected=sim.n_rejected,
-            frames=frames,
-            wall_time=wall,
-            sedimentation_velocity=velocity,
-            session_steps=sim.currentStep - steps0,
-        )
-        facts.update(
-            status=status,
-            message=message,
-            time_reached=sim.time,
-            steps=sim.currentStep,
-            evaluations=sim.n_evaluations,
-            rejected_steps=sim.n_rejected,
-            frames=frames,
-            wall_time_s=round(wall, 3),
-            mean_sedimentation_velocity=velocity,
-            final_max_bond=float(np.max(sim.bond_lengths())),
-        )
-        if watch is not None:
-            record_checks(facts, watch)
-        if links is not None:
-            record_linking(facts, links)
-        try:
-            with _signals_held():  # a second Ctrl-C must not leave status = "running"
+        # from here to run.toml written, a signal is held back and raised after: one
+        # landing while the files close must not leave status = "running"
+        with _signals_held():
+            leave_group(copies)
+            _close(dcd, obs, bar)
+            if watch is not None:
+                # an interrupted run must end promptly (a sweep repeats its stop signal every
+                # second): checks still under way are dropped; the next one after resume sees
+                # any change they would have seen
+                watch.close(wait=status != STATUS_INTERRUPTED)
+            wall = time.perf_counter() - wall0
+            velocity = (z0 - float(sim.positions[:, 2].mean())) / sim.time if sim.time > 0 else 0.0
+            frames = dcd.index if dcd is not None else int(counters["frames"])
+            result = RunResult(
+                directory=directory,
+                time=sim.time,
+                steps=sim.currentStep,
+                evaluations=sim.n_evaluations,
+                rejected=sim.n_rejected,
+                frames=frames,
+                wall_time=wall,
+                sedimentation_velocity=velocity,
+                session_steps=sim.currentStep - steps0,
+            )
+            facts.update(
+                status=status,
+                message=message,
+                time_reached=sim.time,
+                steps=sim.currentStep,
+                evaluations=sim.n_evaluations,
+                rejected_steps=sim.n_rejected,
+                frames=frames,
+                wall_time_s=round(wall, 3),
+                mean_sedimentation_velocity=velocity,
+                final_max_bond=float(np.max(sim.bond_lengths())),
+            )
+            if watch is not None:
+                record_checks(facts, watch)
+            if links is not None:
+                record_linking(facts, links)
+            try:
                 retire_stale_analysis(directory)  # an analysis made while it ran
                 write_run_toml(directory, course.record, facts)
-        except OutputError as exc:  # after a failed run, that failure is the one reported
-            if status == STATUS_FINISHED:  # frames and checkpoint whole: exit 3, resumable
-                raise OutputFault(f"{exc}; the frames and checkpoint are kept: free the "
-                                  f"space and run knotmm run --resume {directory}") from None
-            log.warning("%s", exc)
-        finally:
-            lock.release()
+            except OutputError as exc:  # after a failed run, that failure is the one reported
+                if status == STATUS_FINISHED:  # frames and checkpoint whole: exit 3, resumable
+                    raise OutputFault(f"{exc}; the frames and checkpoint are kept: free the "
+                                      f"space and run knotmm run --resume {directory}") from None
+                log.warning("%s", exc)
+            finally:
+                lock.release()
     return result
 
 
 @contextlib.contextmanager
 def _signals_held():
-    """Hold SIGINT and SIGTERM back for the block (a few milliseconds); they are raised again
-    after it. Only in the main thread, where Python runs its signal handlers."""
+    """Hold SIGINT and SIGTERM back for the block (the end of a run: its files closed, its
+    knot checks' worker stopped, run.toml written); they are raised again after it. Only in
+    the main thread, where Python runs its signal handlers."""
     import signal
     import threading
 
