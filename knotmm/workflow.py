@@ -511,9 +511,7 @@ def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lo
             message = " ".join(f"{type(exc).__name__}: {exc}".split())
         raise
     finally:
-        # from here to run.toml written, a signal is held back and raised after: one
-        # landing while the files close must not leave status = "running"
-        with _signals_held():
+        with _signals_held():  # a signal now must not leave status = "running" (raised after)
             leave_group(copies)
             _close(dcd, obs, bar)
             if watch is not None:
@@ -566,9 +564,8 @@ def _drive(sim, course: _Course, directory, facts, counters, progress, wall0, lo
 
 @contextlib.contextmanager
 def _signals_held():
-    """Hold SIGINT and SIGTERM back for the block (the end of a run: its files closed, its
-    knot checks' worker stopped, run.toml written); they are raised again after it. Only in
-    the main thread, where Python runs its signal handlers."""
+    """Hold SIGINT and SIGTERM back for the block (a run's end: files closed, run.toml
+    written); they are raised again after it. Only in the main thread (Python's handlers)."""
     import signal
     import threading
 
