@@ -121,6 +121,9 @@ def _abort_executor(executor) -> None:
     import signal
 
     processes = list(getattr(executor, "_processes", {}).values())
+    # shutdown(wait=False) forgets the manager thread, which holds the pool's queues (and
+    # their semaphores) until it ends: kept here, to be waited for below
+    manager = getattr(executor, "_executor_manager_thread", None)
     executor.shutdown(wait=False, cancel_futures=True)
     deadline = time.monotonic() + 8.0
     while time.monotonic() < deadline:
@@ -143,7 +146,9 @@ def _abort_executor(executor) -> None:
                     pass
             proc.kill()
             proc.join(timeout=2.0)
-    executor.shutdown(wait=True)  # its workers are gone: release its queues and threads
+    if manager is not None:
+        manager.join(timeout=30.0)  # it ends once it has seen its workers gone
+    executor.shutdown(wait=True)  # release its queues
 
 
 def _descendants(pid: int) -> list[int]:

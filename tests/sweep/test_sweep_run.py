@@ -191,6 +191,60 @@ def test_a_crashed_worker_fails_only_its_point(tmp_path):
     assert "worker process died" in result.rows[2]["error"]
 
 
+def sleeping_point(task):
+    """A point function that waits long enough to be stopped."""
+    import time
+
+    time.sleep(60.0)
+    return {"name": task["name"], "status": "finished", "error": None, "values": {}}
+
+
+def test_a_stopped_pool_leaves_no_semaphore_behind(monkeypatch):
+    """Ctrl-C: the pool's semaphores are unlinked before the sweep raises, even where its
+    manager thread ends late (a loaded machine). ``knotmm sweep`` then exits at once
+    (``os._exit``); a semaphore still registered then was reported by multiprocessing's
+    resource tracker as "leaked semaphore objects" on the user's terminal."""
+    import signal
+    import threading
+    import time
+    from concurrent.futures import process
+    from multiprocessing import resource_tracker
+
+    from knotmm.sweep.local import run_local
+
+    made, freed = set(), set()
+    register, unregister = resource_tracker.register, resource_tracker.unregister
+
+    def counted_register(name, rtype):
+        made.add(name)
+        register(name, rtype)
+
+    def counted_unregister(name, rtype):
+        freed.add(name)
+        unregister(name, rtype)
+
+    join = process._ExecutorManagerThread.join_executor_internals
+
+    def slow_join(self):
+        time.sleep(2.0)  # the manager thread of a loaded machine, which ends late
+        join(self)
+
+    monkeypatch.setattr(resource_tracker, "register", counted_register)
+    monkeypatch.setattr(resource_tracker, "unregister", counted_unregister)
+    monkeypatch.setattr(process._ExecutorManagerThread, "join_executor_internals", slow_join)
+    timer = threading.Timer(1.5, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_local([{"name": "a"}, {"name": "b"}], 1, lambda row: None, sleeping_point)
+    finally:
+        timer.cancel()
+    assert len(made) == 5  # one pool: its call queue (3) and its result queue (2)
+    assert made - freed == set()
+    assert not [t for t in threading.enumerate()
+                if isinstance(t, process._ExecutorManagerThread) and t.is_alive()]
+
+
 @pytest.mark.slow
 def test_ctrl_c_then_resume_from_the_command_line(tmp_path):
     """Send SIGINT to `knotmm sweep` after its first point, then finish the sweep."""
