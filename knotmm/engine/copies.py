@@ -141,7 +141,14 @@ def run_together(count: int, body, max_together: int | None = None) -> dict[int,
 
     # BLAS on one thread for the whole set: each run limits it while it steps and puts the
     # former limit back when it ends, which, with runs ending at their own times, would let
-    # the others factorise with more threads (and round otherwise) from then on
+    # the others factorise with more threads (and round otherwise) from then on. The limit
+    # holds only for the libraries loaded now, and only this (the main) thread may change it
+    # (threadpoolctl: the runs' own limits, in their threads, do nothing): LAPACK's library,
+    # which a Brownian run loads with its integrator, is loaded first. Loaded later, it
+    # factorised on every core in a resumed set (3x slower there, and rounding otherwise than
+    # the uninterrupted set, whose process happened to have loaded it before).
+    import scipy.linalg  # noqa: F401
+
     with threadpool_limits(limits=1, user_api="blas"):
         groups = -(-count // limit)
         for g in range(groups):

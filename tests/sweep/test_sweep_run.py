@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import shutil
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -195,11 +196,12 @@ def sleeping_point(task):
     """A point function that waits long enough to be stopped."""
     import time
 
+    Path(task["started"]).touch()
     time.sleep(60.0)
     return {"name": task["name"], "status": "finished", "error": None, "values": {}}
 
 
-def test_a_stopped_pool_leaves_no_semaphore_behind(monkeypatch):
+def test_a_stopped_pool_leaves_no_semaphore_behind(monkeypatch, tmp_path):
     """Ctrl-C: the pool's semaphores are unlinked before the sweep raises, even where its
     manager thread ends late (a loaded machine). ``knotmm sweep`` then exits at once
     (``os._exit``); a semaphore still registered then was reported by multiprocessing's
@@ -232,13 +234,20 @@ def test_a_stopped_pool_leaves_no_semaphore_behind(monkeypatch):
     monkeypatch.setattr(resource_tracker, "register", counted_register)
     monkeypatch.setattr(resource_tracker, "unregister", counted_unregister)
     monkeypatch.setattr(process._ExecutorManagerThread, "join_executor_internals", slow_join)
-    timer = threading.Timer(1.5, os.kill, (os.getpid(), signal.SIGINT))
-    timer.start()
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            run_local([{"name": "a"}, {"name": "b"}], 1, lambda row: None, sleeping_point)
-    finally:
-        timer.cancel()
+    started = tmp_path / "started"
+
+    def stop_once_started():  # Ctrl-C while the point runs (not while the pool starts)
+        end = time.monotonic() + 120
+        while not started.exists() and time.monotonic() < end:
+            time.sleep(0.05)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    stopper = threading.Thread(target=stop_once_started, daemon=True)
+    stopper.start()
+    with pytest.raises(KeyboardInterrupt):
+        run_local([{"name": n, "started": str(started)} for n in "ab"], 1, lambda row: None,
+                  sleeping_point)
+    stopper.join()
     assert len(made) == 5  # one pool: its call queue (3) and its result queue (2)
     assert made - freed == set()
     assert not [t for t in threading.enumerate()

@@ -340,3 +340,49 @@ def test_the_command_line_runs_and_resumes_a_set(tmp_path, capsys):
     assert "every replica already finished" in capsys.readouterr().err
     assert main(["run", "--resume", str(out), "--duration", "1"]) == 0
     assert read_facts(out / "replica_1")["time_reached"] == pytest.approx(1.0)
+
+
+_LARGE_SET = """
+[knot]
+beads = 80
+[run]
+duration = {duration}
+peclet = 2.0
+seed = 5
+replicas = 2
+replica_stepping = "together"
+topology_check_interval = 0.0
+[output]
+directory = "{directory}"
+frame_interval = 0.25
+checkpoint_interval = 0.5
+"""
+
+
+@pytest.mark.skipif(not kp.available(), reason="the copies are the plugin's")
+def test_a_set_resumed_in_a_new_process_equals_the_uninterrupted_set(tmp_path):
+    # Each command in a process of its own, as a user runs them: the set extended from
+    # 0.5 to 1 tau_d by `--resume --duration` takes the uninterrupted set's steps, to the
+    # last bit of the state. Before, a resumed process loaded LAPACK's library after the set
+    # had limited the BLAS threads: the 240 x 240 noise factors were made on every core
+    # (rounding otherwise, and 3-4x slower).
+    import subprocess
+    import sys
+
+    def knotmm(*args):
+        done = subprocess.run([sys.executable, "-m", "knotmm.cli", *map(str, args),
+                               "--no-progress"], capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+
+    for name, duration in (("whole", 1.0), ("resumed", 0.5)):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(_LARGE_SET.format(duration=duration, directory=tmp_path / name))
+        knotmm("run", path)
+    knotmm("run", "--resume", tmp_path / "resumed", "--duration", 1.0)
+    for k in range(2):
+        whole = np.load(tmp_path / "whole" / f"replica_{k}" / "checkpoint.npz")
+        resumed = np.load(tmp_path / "resumed" / f"replica_{k}" / "checkpoint.npz")
+        assert float(whole["time"]) == float(resumed["time"]) == 1.0
+        np.testing.assert_array_equal(resumed["positions"], whole["positions"])
+        assert read_facts(tmp_path / "resumed" / f"replica_{k}")["replica_stepping"] == (
+            f"together: copy {k} of 2 in one Context")
