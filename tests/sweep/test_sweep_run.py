@@ -242,11 +242,17 @@ def test_a_stopped_pool_leaves_no_semaphore_behind(monkeypatch, tmp_path):
             time.sleep(0.05)
         os.kill(os.getpid(), signal.SIGINT)
 
+    # Ctrl-C as the command line has it (an earlier test in this process may have left
+    # another handler)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     stopper = threading.Thread(target=stop_once_started, daemon=True)
     stopper.start()
-    with pytest.raises(KeyboardInterrupt):
-        run_local([{"name": n, "started": str(started)} for n in "ab"], 1, lambda row: None,
-                  sleeping_point)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_local([{"name": n, "started": str(started)} for n in "ab"], 1,
+                      lambda row: None, sleeping_point)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     stopper.join()
     assert len(made) == 5  # one pool: its call queue (3) and its result queue (2)
     assert made - freed == set()
