@@ -338,6 +338,10 @@ def test_the_command_line_runs_and_resumes_a_set(tmp_path, capsys):
     assert line.startswith("2 replicas (stepped together): 2 simulated 0.5 tau_d")
     assert main(["run", "--resume", str(out)]) == 2
     assert "every replica already finished" in capsys.readouterr().err
+    # a shorter --duration: the line says where the replicas are, not what was asked
+    assert main(["run", "--resume", str(out), "--duration", "0.5"]) == 2
+    err = capsys.readouterr().err
+    assert "at t = 0.5 tau_d or later" in err and "T > 0.5" in err, err
     assert main(["run", "--resume", str(out), "--duration", "1"]) == 0
     assert read_facts(out / "replica_1")["time_reached"] == pytest.approx(1.0)
 
