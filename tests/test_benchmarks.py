@@ -20,7 +20,7 @@ README = BENCH / "README.md"
 #: Programs that are not timings over the harness: the yardsticks (whole programs of their
 #: own, held to knotmm by tests/e2e), the harness itself, and a count that is not a timing.
 STANDALONE = {"harness", "numba_chain", "numba_brownian", "count_allocations",
-              "count_launches", "probe_fsal_brownian"}
+              "count_launches", "probe_fsal_brownian", "probe_stale_factor"}
 #: Modules that scripts import (not run themselves).
 MODULES = {"force_layouts", "preload_shim"}
 #: Where the repository names benchmark scripts.
