@@ -14,7 +14,9 @@ apart), then, for factors 1 ... 128 frames old: the median Lanczos iterations ov
 vectors at tolerances 1e-6 and 1e-3, and (N <= 120) the covariance error
 ``|B B^T - mu(y)|_F / |mu(y)|_F`` with ``B`` built column by column; and the medians of 20
 timings of one ``dpotrf``, one ``dtrsv`` and one ``dsymv`` of size 3N (scipy's LAPACK and
-BLAS, one thread)::
+BLAS, one thread; each repeats one call on a matrix in the cache, so they bound the cost from
+below: built into the plugin, where an iteration streams both matrices from memory, the
+correction was slower than the factorisation, see the README)::
 
     python benchmarks/probe_stale_factor.py N DURATION
     python benchmarks/probe_stale_factor.py 90 0.3
