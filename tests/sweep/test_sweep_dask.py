@@ -89,11 +89,11 @@ def dask_cluster(directory: Path, nworkers: int = 2):
             end(proc)
 
 
-def sweep_file(path: Path, out: Path, sweep: str, checks: bool) -> Path:
+def sweep_file(path: Path, out: Path, sweep: str, checks: bool, run: str = "") -> Path:
     interval = 1.0 if checks else 0.0
     path.write_text(
         "[knot]\nbeads = 30\nperturbation = 0.01\n"
-        f"[run]\nduration = 9.0\ntopology_check_interval = {interval}\n"
+        f"[run]\nduration = 9.0\ntopology_check_interval = {interval}\n{run}"
         f'[output]\nframe_interval = 0.5\ndirectory = "{out}"\n'
         f"[sweep]\n{sweep}\nknot_samples = {5 if checks else 0}\nplots = false\n"
     )
@@ -149,7 +149,10 @@ def test_killing_a_worker_mid_sweep_loses_nothing(tmp_path):
     sweep of the same file."""
     checks = topoly_available()
     out = tmp_path / "dask"
-    path = sweep_file(tmp_path / "s.toml", out, "seeds = 20", checks)
+    # each seed a task of its own (stepped together, the 20 would be two tasks, over before
+    # a worker could be seen busy after the first rows)
+    path = sweep_file(tmp_path / "s.toml", out, "seeds = 20", checks,
+                      run='replica_stepping = "one_after_another"\n')
     with dask_cluster(tmp_path / "cluster") as (address, client):
         pids = client.run(os.getpid)  # worker address -> its process id
         proc = knotmm_sweep(path, address)
