@@ -426,9 +426,9 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     if duration is not None:
         cfg = cfg.replace({"run.duration": float(duration)})
     target = float(duration) if duration is not None else cfg["run.duration"]
-    facts = [_facts(replica_directory(root, k)) for k in range(len(seeds))]
-    if all(_reached(f, target) for f in facts):
-        reached = min(float(f.get("time_reached", 0.0) or 0.0) for f in facts)
+    before = [_facts(replica_directory(root, k)) for k in range(len(seeds))]  # (unlocked)
+    if all(_reached(f, target) for f in before):
+        reached = min(float(f.get("time_reached", 0.0) or 0.0) for f in before)
         raise RunDirectoryError(
             f"--resume {str(root)!r}: every replica already finished, at t = {reached:g} "
             f"tau_d or later; pass --duration T with T > {reached:g} to extend them"

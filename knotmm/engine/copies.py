@@ -145,8 +145,9 @@ def run_together(count: int, body, max_together: int | None = None) -> dict[int,
     # holds only for the libraries loaded now, and only this (the main) thread may change it
     # (threadpoolctl: the runs' own limits, in their threads, do nothing): LAPACK's library,
     # which a Brownian run loads with its integrator, is loaded first. Loaded later, it
-    # factorised on every core in a resumed set (3x slower there, and rounding otherwise than
-    # the uninterrupted set, whose process happened to have loaded it before).
+    # factorised on every core in a resumed set (1.6x slower on idle cores, 4x beside other
+    # work, and rounding otherwise than the uninterrupted set, whose process happened to
+    # have loaded it before).
     import scipy.linalg  # noqa: F401
 
     with threadpool_limits(limits=1, user_api="blas"):

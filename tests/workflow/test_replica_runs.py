@@ -369,7 +369,7 @@ def test_a_set_resumed_in_a_new_process_equals_the_uninterrupted_set(tmp_path):
     # 0.5 to 1 tau_d by `--resume --duration` takes the uninterrupted set's steps, to the
     # last bit of the state. Before, a resumed process loaded LAPACK's library after the set
     # had limited the BLAS threads: the 240 x 240 noise factors were made on every core
-    # (rounding otherwise, and 3-4x slower).
+    # (rounding otherwise, and slower).
     import subprocess
     import sys
 
