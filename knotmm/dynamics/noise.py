@@ -36,7 +36,6 @@ from collections.abc import Callable
 import numpy as np
 import scipy.linalg
 
-from knotmm.dynamics.mobility import rpy_matrix, rpy_velocities
 from knotmm.dynamics.registry import DEFAULT_LANCZOS_TOLERANCE
 from knotmm.errors import ConfigError, SimulationFault
 
@@ -130,6 +129,8 @@ def mobility_cholesky(positions) -> np.ndarray:
         If the mobility is not numerically positive definite (two beads at exactly the same
         point make it singular).
     """
+    from knotmm.dynamics.mobility import rpy_matrix  # numba: only the Python engine's noise
+
     x = _positions(positions)
     try:
         return scipy.linalg.cholesky(rpy_matrix(x), lower=True, check_finite=False)
@@ -284,6 +285,8 @@ def lanczos_noise(
 
 
 def _lanczos_mobility(x, z, tolerance, max_iter):
+    from knotmm.dynamics.mobility import rpy_velocities  # numba: only the Python engine's noise
+
     shape = x.shape
     out = np.empty(shape)
 
