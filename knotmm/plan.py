@@ -358,7 +358,8 @@ class RunPlan:
     n_beads : int
     reasons : Mapping of str to str
         Why a choice was made, as ``run.toml``'s ``[knotmm]`` records it
-        (``integrator_choice`` when ``run.integrator = "auto"``).
+        (``integrator_choice`` when ``run.integrator = "auto"``; ``noise_precision`` for
+        Cholesky noise on the plugin engine: :func:`knotmm.plugin.noise_factor_precision`).
     """
 
     config: RunConfig
@@ -481,6 +482,13 @@ def _plan(record: RunConfig, parts: PlanParts, stepping: Stepping, resources: Ru
           sim: Simulation, reasons: dict[str, str]) -> RunPlan:
     """The frozen plan of a built Simulation (:func:`prepare`'s last step)."""
     placement = Placement.of(sim, parts.compute)
+    if sim.engine == "plugin" and stepping.noise_method == "cholesky":
+        from knotmm.plugin import noise_factor_precision
+
+        factor = noise_factor_precision(placement.precision)
+        reasons = {**reasons, "noise_precision": (
+            f"{factor}: the mobility's Cholesky factor in {factor} precision, as the "
+            f"{placement.platform} platform's forces ({placement.precision})")}
     return RunPlan(
         config=record,
         record=record.to_dict(),

@@ -91,6 +91,7 @@ __all__ = [
     "METHODS",
     "REBUILD_COMMAND",
     "StepFault",
+    "noise_factor_precision",
     "noise_settings",
     "platform_load_errors",
     "rebuild_needed",
@@ -288,18 +289,20 @@ _lapack: bool | None = None  # None: not decided yet
 
 
 def use_lapack_cholesky() -> bool:
-    """Hand the plugin LAPACK's ``dpotrf`` and ``dstev`` for its noise, once; True if in use.
+    """Hand the plugin LAPACK's ``dpotrf``, ``spotrf`` and ``dstev`` for its noise, once;
+    True if in use.
 
     Takes the C function pointers that ``scipy.linalg.cython_lapack`` exports (PyCapsules,
-    ``void dpotrf(char *uplo, int *n, double *a, int *lda, int *info)`` and ``void
-    dstev(char *jobz, int *n, double *d, double *e, double *z, int *ldz, double *work, int
-    *info)``) and gives their addresses to the plugin (``setCholeskyRoutine``,
-    ``setTridiagonalEigenRoutine``), which then calls them for every noise sample (Cholesky
-    factors; the Lanczos tridiagonal matrix's eigenvectors); scipy stays imported, so the
-    library stays loaded. Without scipy (or without the plugin) the plugin keeps its
-    built-in Cholesky, cannot draw Lanczos noise, and this returns False. Called by the first
-    stochastic :class:`RPYIntegrator`, so that deterministic runs never import scipy.linalg
-    (about 0.3 s).
+    ``void dpotrf(char *uplo, int *n, double *a, int *lda, int *info)``, ``spotrf`` the
+    same with ``float *a`` (the single-precision factor: ``RPYIntegrator.setNoisePrecision``)
+    and ``void dstev(char *jobz, int *n, double *d, double *e, double *z, int *ldz, double
+    *work, int *info)``) and gives their addresses to the plugin (``setCholeskyRoutine``,
+    ``setSingleCholeskyRoutine``, ``setTridiagonalEigenRoutine``), which then calls them for
+    every noise sample (Cholesky factors; the Lanczos tridiagonal matrix's eigenvectors);
+    scipy stays imported, so the library stays loaded. Without scipy (or without the plugin)
+    the plugin keeps its built-in Cholesky, cannot draw Lanczos noise, and this returns False.
+    Called by the first stochastic :class:`RPYIntegrator`, so that deterministic runs never
+    import scipy.linalg (about 0.3 s).
     """
     global _lapack
     if _lapack is None:
@@ -312,6 +315,7 @@ def use_lapack_cholesky() -> bool:
             else:
                 capi = cython_lapack.__pyx_capi__
                 _rpy.setCholeskyRoutine(_capsule_address(capi["dpotrf"]))
+                _rpy.setSingleCholeskyRoutine(_capsule_address(capi["spotrf"]))
                 _rpy.setTridiagonalEigenRoutine(_capsule_address(capi["dstev"]))
                 _lapack = True
     return _lapack
@@ -364,6 +368,14 @@ if _rpy is not None:
             approximation of ``mu^(1/2) xi`` (matrix-free; for large N).
         lanczos_tolerance : float
             Lanczos: relative change between successive iterates at which to stop.
+        noise_precision : {"auto", "single", "double"}
+            Cholesky noise: the precision the mobility is factorised in. ``"auto"`` follows
+            the platform's forces: single precision on the CPU platform (and a device
+            platform in single or mixed precision), double on Reference (and a device in
+            double). A single-precision factor has ``L L^T = mu`` to about 1e-7 of its
+            largest entry, far below any sampling error, and costs 0.6x a double one (LAPACK's
+            ``spotrf``, N = 90, this CPU; ``benchmarks/README.md``); the products ``L z`` are
+            summed in double.
 
         Notes
         -----
@@ -399,6 +411,7 @@ if _rpy is not None:
             threads: int = 1,
             noise: str = "cholesky",
             lanczos_tolerance: float = DEFAULT_LANCZOS_TOLERANCE,
+            noise_precision: str = "auto",
         ):
             if method not in METHODS:
                 raise ValueError(
@@ -416,6 +429,7 @@ if _rpy is not None:
             self.setNumThreads(int(threads))
             self.setNoiseMethod(noise)
             self.setLanczosTolerance(float(lanczos_tolerance))
+            self.setNoisePrecision(noise_precision)
 
         def __repr__(self) -> str:
             return (
@@ -435,6 +449,27 @@ else:
         def __init__(self, *args, **kwargs):
             raise PluginUnavailableError(_load_error)
 
+
+
+def noise_factor_precision(force_precision: str, setting: str = "auto") -> str:
+    """The precision the plugin factorises the mobility in for Cholesky noise.
+
+    Parameters
+    ----------
+    force_precision : {"single", "mixed", "double"}
+        The platform's force precision (:class:`knotmm.plan.Placement`).
+    setting : {"auto", "single", "double"}
+        ``RPYIntegrator.getNoisePrecision()``; ``"auto"`` (knotmm's runs) is resolved as the
+        plugin's backends resolve it: single where the forces are single or mixed precision.
+
+    Returns
+    -------
+    str
+        ``"single"`` or ``"double"``.
+    """
+    if setting != "auto":
+        return setting
+    return "single" if force_precision in ("single", "mixed") else "double"
 
 
 def noise_settings(integrator, n_beads: int | None = None) -> tuple[str, float]:

@@ -51,6 +51,33 @@ static PyObject* choleskyFactor(PyObject* matrix, bool builtin) {
     return out;
 }
 
+// The lower Cholesky factor in single precision as the steps compute it with a noise precision
+// of "single" (the matrix rounded to float, then spotrf when handed over), returned in double.
+// For tests; raises ValueError if the matrix is not positive definite.
+static PyObject* singleCholeskyFactor(PyObject* matrix) {
+    PyArrayObject* in = (PyArrayObject*) PyArray_FROMANY(matrix, NPY_DOUBLE, 2, 2, NPY_ARRAY_CARRAY_RO);
+    if (in == NULL)
+        return NULL;
+    const npy_intp n = PyArray_DIM(in, 0);
+    if (PyArray_DIM(in, 1) != n) {
+        Py_DECREF(in);
+        PyErr_SetString(PyExc_ValueError, "matrix: expected a square array");
+        return NULL;
+    }
+    const double* data = (const double*) PyArray_DATA(in);
+    std::vector<float> a(data, data + n * n);
+    Py_DECREF(in);
+    if (!KnotMM::choleskyLower(a, (int) n)) {
+        PyErr_SetString(PyExc_ValueError, "matrix: not positive definite");
+        return NULL;
+    }
+    npy_intp dims[2] = {n, n};
+    PyObject* out = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
+    if (out != NULL)
+        std::copy(a.begin(), a.end(), (double*) PyArray_DATA((PyArrayObject*) out));
+    return out;
+}
+
 // mu(x)^(1/2) z by the steps' Lanczos routine (LanczosSqrt): positions (n, 3) and z (3n
 // numbers, bead-major) array_like, in d and mu0 units given by diameter and mobility (LAPACK's
 // dstev must have been handed over). Returns the tuple (y as an array of shape (n, 3),
@@ -224,6 +251,7 @@ static PyObject* methodTable();
 static double landingSlack(double target);
 static PyObject* counterNormals(unsigned long long seed, unsigned long long draw, int count);
 static PyObject* choleskyFactor(PyObject* matrix, bool builtin);
+static PyObject* singleCholeskyFactor(PyObject* matrix);
 static PyObject* lanczosSqrt(PyObject* positions, PyObject* z, double tolerance, double diameter,
                              double mobility);
 
@@ -231,6 +259,8 @@ namespace KnotMM {
 
 void setCholeskyRoutine(unsigned long long address);
 unsigned long long getCholeskyRoutine();
+void setSingleCholeskyRoutine(unsigned long long address);
+unsigned long long getSingleCholeskyRoutine();
 void setTridiagonalEigenRoutine(unsigned long long address);
 unsigned long long getTridiagonalEigenRoutine();
 
@@ -253,6 +283,8 @@ public:
     void setNoiseMethod(const std::string& method);
     double getLanczosTolerance() const;
     void setLanczosTolerance(double tol);
+    const std::string& getNoisePrecision() const;
+    void setNoisePrecision(const std::string& precision);
     int getRandomNumberSeed() const;
     void setRandomNumberSeed(int seed);
     double getMinimumStepSize() const;

@@ -1,4 +1,5 @@
-"""The plugin's Cholesky factor through LAPACK (scipy's dpotrf) against its built-in routine."""
+"""The plugin's Cholesky factor through LAPACK (scipy's dpotrf, and spotrf for the
+single-precision noise factor) against its built-in routine and numpy's factor."""
 
 from __future__ import annotations
 
@@ -44,3 +45,37 @@ def test_not_positive_definite_is_refused(builtin):
     kp.use_lapack_cholesky()
     with pytest.raises(ValueError, match="not positive definite"):
         kp.rpyplugin.choleskyFactor(np.diag([1.0, -1.0, 2.0]), builtin)
+
+
+@pytest.mark.parametrize("positions", [torus_knot(2, 3, 90), compact_coil(90)],
+                         ids=["torus", "coil"])
+def test_single_precision_factor_is_the_factor_to_float_rounding(positions):
+    """The factor a noise precision of "single" makes: float numbers (each one a float32
+    exactly), the lower factor of the mobility to float32 rounding (numpy's double factor as
+    the reference), and so a noise covariance L L^T within 1e-6 of mu."""
+    m = rpy_matrix(positions)
+    assert kp.use_lapack_cholesky() and kp.rpyplugin.getSingleCholeskyRoutine() != 0
+    single = kp.rpyplugin.singleCholeskyFactor(m)
+    exact = np.linalg.cholesky(m)
+    scale = np.abs(exact).max()
+    assert not np.triu(single, 1).any()
+    np.testing.assert_array_equal(single, single.astype(np.float32).astype(np.float64))
+    error = np.abs(single - exact).max()
+    assert 1e-10 * scale < error <= 2e-6 * scale  # rounded as float32 is, no further
+    np.testing.assert_allclose(single @ single.T, m, rtol=0, atol=1e-6 * np.abs(m).max())
+
+
+def test_single_precision_factor_refuses_what_is_not_positive_definite():
+    kp.use_lapack_cholesky()
+    with pytest.raises(ValueError, match="not positive definite"):
+        kp.rpyplugin.singleCholeskyFactor(np.diag([1.0, -1.0, 2.0]))
+
+
+def test_noise_precision_setting_is_checked():
+    integ = RPYIntegrator(0.01, "ito_heun", kT=0.5)
+    assert integ.getNoisePrecision() == "auto"
+    for value in ("single", "double", "auto"):
+        integ.setNoisePrecision(value)
+        assert integ.getNoisePrecision() == value
+    with pytest.raises(Exception, match="noisePrecision='half'"):
+        integ.setNoisePrecision("half")

@@ -17,7 +17,7 @@ from knotmm.model.topology import bead_topology
 from knotmm.shapes.geometry import torus_knot
 
 SETTINGS = dict(error_tolerance=3e-5, kT=0.25, seed=11, min_step=2e-6, max_step=0.3, threads=2,
-                noise="lanczos", lanczos_tolerance=1e-5)
+                noise="lanczos", lanczos_tolerance=1e-5, noise_precision="single")
 
 
 def _configured():
@@ -28,6 +28,7 @@ def _configured():
     integ.setNumThreads(SETTINGS["threads"])
     integ.setNoiseMethod(SETTINGS["noise"])
     integ.setLanczosTolerance(SETTINGS["lanczos_tolerance"])
+    integ.setNoisePrecision(SETTINGS["noise_precision"])
     integ.setBeadDiameter(1.5)
     integ.setMobility(0.5)
     return integ
@@ -37,8 +38,8 @@ def _settings(integ):
     return (integ.getMethod(), integ.getStepSize().value_in_unit(openmm.unit.picosecond),
             integ.getErrorTolerance(), integ.getThermalEnergy(), integ.getRandomNumberSeed(),
             integ.getMinimumStepSize(), integ.getMaximumStepSize(), integ.getNumThreads(),
-            integ.getNoiseMethod(), integ.getLanczosTolerance(), integ.getBeadDiameter(),
-            integ.getMobility())
+            integ.getNoiseMethod(), integ.getLanczosTolerance(), integ.getNoisePrecision(),
+            integ.getBeadDiameter(), integ.getMobility())
 
 
 @pytest.mark.parametrize("how", ["deserialize", "clone"])

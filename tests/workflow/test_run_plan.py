@@ -156,6 +156,17 @@ def test_cpu_forces_are_single_precision_as_openmm_says():
     assert (plan.placement.platform, plan.placement.precision) == ("CPU", "single")
 
 
+@pytest.mark.parametrize(("platform", "precision"), [("CPU", "single"), ("Reference", "double")])
+def test_the_plan_records_the_noise_factors_precision(platform, precision):
+    """Cholesky noise on the plugin engine: the factor's precision follows the platform's
+    forces, and the plan says so (``run.toml``); no noise, nothing said."""
+    pytest.importorskip("knotmm.plugin._rpyplugin")
+    plan = make_plan(_cfg(peclet=2.0, platform=platform, engine="plugin"))
+    assert plan.reasons["noise_precision"].startswith(f"{precision}: ")
+    assert f"{platform} platform's forces" in plan.reasons["noise_precision"]
+    assert "noise_precision" not in make_plan(_cfg(platform=platform, engine="plugin")).reasons
+
+
 def test_the_perturbation_seed_rule_is_the_builders():
     """The spec's seeds are the ones the template builder used (knot.seed, else run.seed;
     run.seed + index for [[chains]] entries)."""

@@ -32,7 +32,7 @@ const int CHECKPOINT_VERSION = 1;
 } // namespace
 
 RPYIntegrator::RPYIntegrator(double stepSize, const std::string& method, double errorTolerance)
-    : method(method), noiseMethod("cholesky"), lanczosTolerance(1e-6), errorTolerance(errorTolerance), beadDiameter(1.0), mobility(1.0),
+    : method(method), noiseMethod("cholesky"), noisePrecision("auto"), lanczosTolerance(1e-6), errorTolerance(errorTolerance), beadDiameter(1.0), mobility(1.0),
       thermalEnergy(0.0), minStepSize(1e-7), maxStepSize(1.0), randomSeed(0), numThreads(1) {
     rpyMethodInfo(method);  // throws for an unknown name
     requirePositive(stepSize, "stepSize", " (in ps = tau_d)");
@@ -102,6 +102,12 @@ void RPYIntegrator::setNoiseMethod(const std::string& name) {
     if (name != "cholesky" && name != "lanczos")
         throw OpenMMException("noiseMethod='" + name + "': expected 'cholesky' or 'lanczos'");
     noiseMethod = name;
+}
+
+void RPYIntegrator::setNoisePrecision(const std::string& precision) {
+    if (precision != "auto" && precision != "single" && precision != "double")
+        throw OpenMMException("noisePrecision='" + precision + "': expected 'auto', 'single' or 'double'");
+    noisePrecision = precision;
 }
 
 void RPYIntegrator::setLanczosTolerance(double tol) {

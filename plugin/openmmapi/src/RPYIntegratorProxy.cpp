@@ -32,6 +32,7 @@ public:
         node.setDoubleProperty("maximumStepSize", integ.getMaximumStepSize());
         node.setIntProperty("numThreads", integ.getNumThreads());
         node.setStringProperty("noiseMethod", integ.getNoiseMethod());
+        node.setStringProperty("noisePrecision", integ.getNoisePrecision());
         node.setDoubleProperty("lanczosTolerance", integ.getLanczosTolerance());
         node.setIntProperty("integrationForceGroups", integ.getIntegrationForceGroups());
         SerializationNode& start = node.createChildNode("SpectralRadiusStartVector");
@@ -54,6 +55,7 @@ public:
             integ->setMaximumStepSize(node.getDoubleProperty("maximumStepSize"));
             integ->setNumThreads(node.getIntProperty("numThreads"));
             integ->setNoiseMethod(node.getStringProperty("noiseMethod", "cholesky"));
+            integ->setNoisePrecision(node.getStringProperty("noisePrecision", "auto"));
             integ->setLanczosTolerance(node.getDoubleProperty("lanczosTolerance", 1e-6));
             integ->setIntegrationForceGroups(node.getIntProperty("integrationForceGroups"));
             std::vector<Vec3> start;

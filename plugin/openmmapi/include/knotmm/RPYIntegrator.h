@@ -78,6 +78,16 @@ public:
     /** Lanczos: relative change between successive iterates at which to stop (default 1e-6). */
     double getLanczosTolerance() const { return lanczosTolerance; }
     void setLanczosTolerance(double tol);
+    /**
+     * Precision of the Cholesky noise factor: "double", "single" (the matrix stored and
+     * factorised in float, LAPACK's spotrf; B B^T = mu to about 1e-7 of its largest entry; the
+     * products L z summed in double) or "auto" (the default: single where the platform's
+     * forces are single precision, the CPU platform and a device platform in single or mixed
+     * precision; double on Reference and a device platform in double). A setting read at every
+     * step (not part of checkpoints); Lanczos noise is always double.
+     */
+    const std::string& getNoisePrecision() const { return noisePrecision; }
+    void setNoisePrecision(const std::string& precision);
     int getRandomNumberSeed() const { return randomSeed; }
     void setRandomNumberSeed(int seed);
     double getMinimumStepSize() const { return minStepSize; }
@@ -218,7 +228,7 @@ private:
     void checkSingle(const char* what) const;
     void checkTarget(double time) const;
     void takeStep(double targetTime);
-    std::string method, noiseMethod;
+    std::string method, noiseMethod, noisePrecision;
     double lanczosTolerance;
     double errorTolerance, beadDiameter, mobility, thermalEnergy, minStepSize, maxStepSize;
     int randomSeed, numThreads, numCopies = 1;

@@ -125,6 +125,8 @@ private:
     std::shared_ptr<std::map<std::string, OpenMM::ComputeProgram>> combinePrograms;  // by pattern, shared too
     std::map<std::string, OpenMM::ComputeKernel> combineKernels;  // by pattern of terms
     std::vector<double> host, hostOut, noiseAtHost, mat;           // host scratch
+    std::vector<float> matSingle;                                  // the factor in single precision
+    bool singleFactor = false;                                     // matSingle, else mat
 };
 
 /** The integrator's kernel on a device platform: the stepper over CommonRPYBackend. */

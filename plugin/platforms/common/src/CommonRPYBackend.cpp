@@ -178,6 +178,7 @@ VectorPtr CommonRPYBackend::createVector() {
 void CommonRPYBackend::applySettings(const RPYIntegrator& integrator) {
     lanczos = integrator.getNoiseMethod() == "lanczos";
     lanczosTolerance = integrator.getLanczosTolerance();
+    singleFactor = usesSingleFactor(integrator.getNoisePrecision(), single || mixed);
 }
 
 // --- the Context -------------------------------------------------------------------------------

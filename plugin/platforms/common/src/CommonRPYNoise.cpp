@@ -24,8 +24,16 @@ void CommonRPYBackend::factorNoise(const StateVector& y) {
     for (int b = 0; b < n; b++)
         for (int k = 0; k < 3; k++)
             noiseAtHost[k * n + b] = host[3 * b + k];
-    hostMobility.lowerMatrix(n, noiseAtHost.data(), mat);
-    if (!choleskyLower(mat, 3 * n))
+    bool factored;
+    if (singleFactor) {
+        hostMobility.lowerMatrix(n, noiseAtHost.data(), matSingle);
+        factored = choleskyLower(matSingle, 3 * n);
+    }
+    else {
+        hostMobility.lowerMatrix(n, noiseAtHost.data(), mat);
+        factored = choleskyLower(mat, 3 * n);
+    }
+    if (!factored)
         throw RPYStepFault(RPYStepFault::NotPositiveDefinite,
                            "RPYIntegrator: the RPY mobility is not positive definite at these "
                            "positions (two beads at the same point?)");
@@ -38,7 +46,10 @@ void CommonRPYBackend::applyNoise(double scale, const StateVector& z, StateVecto
     }
     data(z).download(host);
     hostOut.resize(3 * n);
-    lowerTimes(mat, 3 * n, host.data(), scale, hostOut.data());
+    if (singleFactor)
+        lowerTimes(matSingle, 3 * n, host.data(), scale, hostOut.data());
+    else
+        lowerTimes(mat, 3 * n, host.data(), scale, hostOut.data());
     data(out).upload(hostOut);
 }
 

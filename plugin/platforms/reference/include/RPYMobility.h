@@ -3,6 +3,7 @@
 
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace OpenMM {
@@ -29,9 +30,11 @@ public:
     /**
      * Lower triangle (diagonal included) of the dense 3n x 3n mobility, bead-major (x0, y0,
      * z0, x1, ...), row-major storage; m is resized to 3n x 3n and its upper triangle is left
-     * as it was (the input choleskyLower needs).
+     * as it was (the input choleskyLower needs). Computed in double precision and stored as
+     * Real (double, or float for a single-precision noise factor).
      */
-    void lowerMatrix(int n, const double* x, std::vector<double>& m) const;
+    template <class Real>
+    void lowerMatrix(int n, const double* x, std::vector<Real>& m) const;
 private:
     void rows(int n, const double* x, const double* f, double* v, int begin, int end) const;
     double d, mu0;
@@ -45,6 +48,19 @@ private:
  * LAPACK's dpotrf when a routine was set with setCholeskyRoutine, else choleskyLowerBuiltin.
  */
 bool choleskyLower(std::vector<double>& a, int n);
+/**
+ * The same in single precision: LAPACK's spotrf when a routine was set with
+ * setSingleCholeskyRoutine, else the built-in routine in double precision, rounded.
+ */
+bool choleskyLower(std::vector<float>& a, int n);
+
+/**
+ * Whether the Cholesky noise factor is made in single precision, for
+ * RPYIntegrator::getNoisePrecision() on a platform whose forces are single precision or not.
+ */
+inline bool usesSingleFactor(const std::string& precision, bool singleForces) {
+    return precision == "single" || (precision == "auto" && singleForces);
+}
 
 /**
  * True if `s` is a number > 0 (false for NaN). Defined in a file compiled with strict IEEE
@@ -65,9 +81,18 @@ bool choleskyLowerBuiltin(std::vector<double>& a, int n);
 void setCholeskyRoutine(unsigned long long address);
 /** The dpotrf address in use, or 0 for the built-in routine. */
 unsigned long long getCholeskyRoutine();
+/**
+ * Use LAPACK's spotrf at `address` for the single-precision choleskyLower (the same
+ * signature with float*), as scipy.linalg.cython_lapack exports it. 0: the built-in routine.
+ */
+void setSingleCholeskyRoutine(unsigned long long address);
+/** The spotrf address in use, or 0. */
+unsigned long long getSingleCholeskyRoutine();
 
 /** out = scale * L xi for a lower-triangular row-major n x n L (upper triangle ignored). */
 void lowerTimes(const std::vector<double>& lower, int n, const double* xi, double scale, double* out);
+/** The same with a single-precision L; the sums in double precision. */
+void lowerTimes(const std::vector<float>& lower, int n, const double* xi, double scale, double* out);
 
 /**
  * Eigen-decomposition of the symmetric tridiagonal k x k matrix with diagonal `diag` (k numbers)

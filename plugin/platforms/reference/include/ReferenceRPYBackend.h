@@ -29,9 +29,13 @@ public:
  */
 class ReferenceRPYBackend : public RPYBackend {
 public:
-    ReferenceRPYBackend(const OpenMM::System& system, const RPYIntegrator& integrator);
+    /**
+     * `singleForces`: the platform computes forces in single precision (the CPU platform),
+     * which a noise precision of "auto" follows (RPYIntegrator::setNoisePrecision).
+     */
+    ReferenceRPYBackend(const OpenMM::System& system, const RPYIntegrator& integrator, bool singleForces);
     /** A backend of `numBeads` beads that reads no System (a copy of a batch, ReferenceRPYBatch). */
-    ReferenceRPYBackend(int numBeads, const RPYIntegrator& integrator);
+    ReferenceRPYBackend(int numBeads, const RPYIntegrator& integrator, bool singleForces);
     int numBeads() const override { return n; }
     VectorPtr createVector() override { return VectorPtr(new ReferenceVector(3 * n)); }
     void applySettings(const RPYIntegrator& integrator) override;
@@ -76,9 +80,12 @@ private:
     int numThreads;
     RPYMobility mobility;
     bool lanczos = false;
+    bool singleForces;          // the platform's forces are single precision
+    bool singleFactor = false;  // the Cholesky factor in float (matSingle), else in double (mat)
     double lanczosTolerance = 1e-6;
     LanczosSqrt lanczosSqrt;
     std::vector<double> xs, fs, vs, zs, mat;  // scratch: structure-of-arrays copies, the matrix
+    std::vector<float> matSingle;             // the matrix and its factor in single precision
     std::vector<double> noiseAt;              // factorNoise's positions, structure of arrays
     std::vector<OpenMM::Vec3> beadForces;     // scratch: the beads' forces when sites sit among them
 };

@@ -26,7 +26,8 @@ class ReferenceRPYBatch;
 /** A copy's backend on the host; its Cholesky factorisations go to the batch's threads. */
 class CopyBackend : public BatchedBackend<ReferenceRPYBackend> {
 public:
-    CopyBackend(ReferenceRPYBatch& batch, int copy, int numBeads, const RPYIntegrator& integrator, int threads);
+    CopyBackend(ReferenceRPYBatch& batch, int copy, int numBeads, const RPYIntegrator& integrator, int threads,
+                bool singleForces);
     /** Cholesky with the batch's threads: factorised by them beside the other copies' work; else as alone. */
     void factorNoise(const StateVector& y) override;
     /** The batch's jobs for this copy, run on one of its threads. */
@@ -41,7 +42,8 @@ private:
 
 class ReferenceRPYBatch : public CopyBatch {
 public:
-    ReferenceRPYBatch(const OpenMM::System& system, const RPYIntegrator& integrator);
+    /** `singleForces`: as for ReferenceRPYBackend (the CPU platform). */
+    ReferenceRPYBatch(const OpenMM::System& system, const RPYIntegrator& integrator, bool singleForces);
     ~ReferenceRPYBatch();
 
 protected:
@@ -53,6 +55,7 @@ protected:
 
 private:
     void startThreads();
+    bool singleForces;
     std::vector<std::vector<OpenMM::Vec3>> forces;  // each copy's beads' forces at its request
     // scratch of evaluate and runJobs: each copy's positions and centre, the waiting copies
     std::vector<const std::vector<double>*> at;

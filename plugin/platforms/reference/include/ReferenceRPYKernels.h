@@ -4,6 +4,7 @@
 #include "ReferenceRPYBackend.h"
 #include "ReferenceRPYBatch.h"
 #include "knotmm/stepper/StepperKernel.h"
+#include "openmm/Platform.h"
 
 namespace KnotMM {
 
@@ -16,12 +17,16 @@ public:
 protected:
     std::unique_ptr<RPYBackend> createBackend(const OpenMM::System& system,
                                               const RPYIntegrator& integrator) override {
-        return std::unique_ptr<RPYBackend>(new ReferenceRPYBackend(system, integrator));
+        return std::unique_ptr<RPYBackend>(new ReferenceRPYBackend(system, integrator, singleForces()));
     }
     std::unique_ptr<RPYCopies> createCopies(const OpenMM::System& system,
                                             const RPYIntegrator& integrator) override {
-        return std::unique_ptr<RPYCopies>(new ReferenceRPYBatch(system, integrator));
+        return std::unique_ptr<RPYCopies>(new ReferenceRPYBatch(system, integrator, singleForces()));
     }
+
+private:
+    /** The CPU platform computes its forces in single precision, the Reference platform in double. */
+    bool singleForces() { return getPlatform().getName() == "CPU"; }
 };
 
 } // namespace KnotMM

@@ -101,33 +101,55 @@ void RPYMobility::velocities(int n, const double* x, const double* f, double* v)
     pool->waitForThreads();
 }
 
-void RPYMobility::lowerMatrix(int n, const double* x, std::vector<double>& m) const {
+template <class Real>
+void RPYMobility::lowerMatrix(int n, const double* x, std::vector<Real>& m) const {
     // Row by row (bead i, then its three rows), blocks j <= i only: contiguous writes, half
     // the pairs of a full fill, and nothing above the diagonal is touched (the Cholesky
-    // routines read only the lower triangle).
+    // routines read only the lower triangle). Every entry is computed in double precision and
+    // then stored as Real.
     const int dim = 3 * n;
     m.resize((size_t) dim * dim);
     const double invD = 1.0 / d;
     for (int i = 0; i < n; i++) {
-        double* rows[3] = {&m[(size_t) (3 * i) * dim], &m[(size_t) (3 * i + 1) * dim], &m[(size_t) (3 * i + 2) * dim]};
+        Real* rows[3] = {&m[(size_t) (3 * i) * dim], &m[(size_t) (3 * i + 1) * dim], &m[(size_t) (3 * i + 2) * dim]};
         for (int j = 0; j < i; j++) {
             const double rv[3] = {x[j] - x[i], x[n + j] - x[n + i], x[2 * n + j] - x[2 * n + i]};
             const Coefficients c = pairCoefficients(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2], d, invD);
             for (int k = 0; k < 3; k++)
                 for (int l = 0; l < 3; l++)
-                    rows[k][3 * j + l] = mu0 * (c.b * rv[k] * rv[l] + (k == l ? c.a : 0.0));
+                    rows[k][3 * j + l] = (Real) (mu0 * (c.b * rv[k] * rv[l] + (k == l ? c.a : 0.0)));
         }
         for (int k = 0; k < 3; k++)
             for (int l = 0; l <= k; l++)
-                rows[k][3 * i + l] = k == l ? mu0 : 0.0;
+                rows[k][3 * i + l] = (Real) (k == l ? mu0 : 0.0);
     }
 }
 
+template void RPYMobility::lowerMatrix<double>(int, const double*, std::vector<double>&) const;
+template void RPYMobility::lowerMatrix<float>(int, const double*, std::vector<float>&) const;
+
 namespace {
-// LAPACK dpotrf (Fortran convention: every argument by pointer), or null for the built-in
-// routine. Atomic: set once from Python, read by every factorisation.
+// LAPACK dpotrf and spotrf (Fortran convention: every argument by pointer), or null for the
+// built-in routine. Atomic: set once from Python, read by every factorisation.
 typedef void (*PotrfRoutine)(char* uplo, int* n, double* a, int* lda, int* info);
+typedef void (*SinglePotrfRoutine)(char* uplo, int* n, float* a, int* lda, int* info);
 std::atomic<PotrfRoutine> potrfRoutine{nullptr};
+std::atomic<SinglePotrfRoutine> singlePotrfRoutine{nullptr};
+
+// The row-major array is the column-major transpose, which is the same symmetric matrix;
+// LAPACK's upper factor U (A = U^T U, column-major) is then L = U^T in the row-major lower
+// triangle. LAPACK leaves the other triangle as it was: zero it.
+template <class Real, class Routine>
+bool lapackLower(Routine potrf, std::vector<Real>& a, int n) {
+    char uplo = 'U';
+    int size = n, lda = n, info = 0;
+    potrf(&uplo, &size, a.data(), &lda, &info);
+    if (info != 0)
+        return false;
+    for (int i = 0; i < n; i++)
+        std::fill(a.begin() + (size_t) i * n + i + 1, a.begin() + (size_t) (i + 1) * n, (Real) 0);
+    return true;
+}
 } // namespace
 
 void KnotMM::setCholeskyRoutine(unsigned long long address) {
@@ -138,20 +160,28 @@ unsigned long long KnotMM::getCholeskyRoutine() {
     return static_cast<unsigned long long>(reinterpret_cast<uintptr_t>(potrfRoutine.load()));
 }
 
+void KnotMM::setSingleCholeskyRoutine(unsigned long long address) {
+    singlePotrfRoutine.store(reinterpret_cast<SinglePotrfRoutine>(static_cast<uintptr_t>(address)));
+}
+
+unsigned long long KnotMM::getSingleCholeskyRoutine() {
+    return static_cast<unsigned long long>(reinterpret_cast<uintptr_t>(singlePotrfRoutine.load()));
+}
+
 bool KnotMM::choleskyLower(std::vector<double>& a, int n) {
     PotrfRoutine potrf = potrfRoutine.load();
-    if (potrf == nullptr)
-        return choleskyLowerBuiltin(a, n);
-    // The row-major array is the column-major transpose, which is the same symmetric matrix;
-    // LAPACK's upper factor U (A = U^T U, column-major) is then L = U^T in the row-major lower
-    // triangle. LAPACK leaves the other triangle as it was: zero it.
-    char uplo = 'U';
-    int size = n, lda = n, info = 0;
-    potrf(&uplo, &size, a.data(), &lda, &info);
-    if (info != 0)
+    return potrf == nullptr ? choleskyLowerBuiltin(a, n) : lapackLower(potrf, a, n);
+}
+
+bool KnotMM::choleskyLower(std::vector<float>& a, int n) {
+    SinglePotrfRoutine potrf = singlePotrfRoutine.load();
+    if (potrf != nullptr)
+        return lapackLower(potrf, a, n);
+    // no spotrf handed over: the built-in routine in double precision, rounded
+    std::vector<double> wide(a.begin(), a.end());
+    if (!choleskyLowerBuiltin(wide, n))
         return false;
-    for (int i = 0; i < n; i++)
-        std::fill(a.begin() + (size_t) i * n + i + 1, a.begin() + (size_t) (i + 1) * n, 0.0);
+    std::copy(wide.begin(), wide.end(), a.begin());
     return true;
 }
 
@@ -163,6 +193,18 @@ void KnotMM::lowerTimes(const std::vector<double>& lower, int n, const double* x
 #pragma omp simd reduction(+ : s)
         for (int k = 0; k <= i; k++)
             s += li[k] * xi[k];
+        out[i] = scale * s;
+    }
+}
+
+KNOTMM_CLONES
+void KnotMM::lowerTimes(const std::vector<float>& lower, int n, const double* xi, double scale, double* out) {
+    for (int i = 0; i < n; i++) {
+        const float* li = &lower[(size_t) i * n];
+        double s = 0.0;
+#pragma omp simd reduction(+ : s)
+        for (int k = 0; k <= i; k++)
+            s += (double) li[k] * xi[k];
         out[i] = scale * s;
     }
 }

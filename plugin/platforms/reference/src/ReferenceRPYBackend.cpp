@@ -26,9 +26,9 @@ inline const vector<double>& data(const StateVector& v) { return static_cast<con
 
 } // namespace
 
-ReferenceRPYBackend::ReferenceRPYBackend(const System& system, const RPYIntegrator& integrator)
+ReferenceRPYBackend::ReferenceRPYBackend(const System& system, const RPYIntegrator& integrator, bool singleForces)
     : diameter(integrator.getBeadDiameter()), mu0(integrator.getMobility()),
-      numThreads(integrator.getNumThreads()), mobility(diameter, mu0, numThreads) {
+      numThreads(integrator.getNumThreads()), mobility(diameter, mu0, numThreads), singleForces(singleForces) {
     for (int i = 0; i < system.getNumParticles(); i++) {
         if (system.isVirtualSite(i))
             hasVirtualSites = true;
@@ -41,9 +41,9 @@ ReferenceRPYBackend::ReferenceRPYBackend(const System& system, const RPYIntegrat
     applySettings(integrator);
 }
 
-ReferenceRPYBackend::ReferenceRPYBackend(int numBeads, const RPYIntegrator& integrator)
+ReferenceRPYBackend::ReferenceRPYBackend(int numBeads, const RPYIntegrator& integrator, bool singleForces)
     : diameter(integrator.getBeadDiameter()), mu0(integrator.getMobility()),
-      numThreads(integrator.getNumThreads()), mobility(diameter, mu0, numThreads) {
+      numThreads(integrator.getNumThreads()), mobility(diameter, mu0, numThreads), singleForces(singleForces) {
     n = numBeads;
     for (int b = 0; b < n; b++)
         beadParticle.push_back(b);
@@ -55,6 +55,7 @@ ReferenceRPYBackend::ReferenceRPYBackend(int numBeads, const RPYIntegrator& inte
 void ReferenceRPYBackend::applySettings(const RPYIntegrator& integrator) {
     lanczos = integrator.getNoiseMethod() == "lanczos";
     lanczosTolerance = integrator.getLanczosTolerance();
+    singleFactor = usesSingleFactor(integrator.getNoisePrecision(), singleForces);
     if (integrator.getNumThreads() != numThreads) {
         numThreads = integrator.getNumThreads();
         mobility = RPYMobility(diameter, mu0, numThreads);
@@ -164,8 +165,16 @@ void ReferenceRPYBackend::factorNoise(const StateVector& y) {
     if (lanczos)
         return;  // matrix-free: applyNoise runs the Krylov iteration at noiseAt
     // exact: the dense Cholesky factor of the 3n x 3n mobility
-    mobility.lowerMatrix(n, noiseAt.data(), mat);
-    if (!choleskyLower(mat, 3 * n))
+    bool factored;
+    if (singleFactor) {
+        mobility.lowerMatrix(n, noiseAt.data(), matSingle);
+        factored = choleskyLower(matSingle, 3 * n);
+    }
+    else {
+        mobility.lowerMatrix(n, noiseAt.data(), mat);
+        factored = choleskyLower(mat, 3 * n);
+    }
+    if (!factored)
         throw RPYStepFault(RPYStepFault::NotPositiveDefinite,
                            "RPYIntegrator: the RPY mobility is not positive definite at these "
                            "positions (two beads at the same point?)");
@@ -175,7 +184,10 @@ void ReferenceRPYBackend::applyNoise(double scale, const StateVector& z, StateVe
     const vector<double>& zz = data(z);
     vector<double>& out = data(outVector);
     if (!lanczos) {
-        lowerTimes(mat, 3 * n, zz.data(), scale, out.data());
+        if (singleFactor)
+            lowerTimes(matSingle, 3 * n, zz.data(), scale, out.data());
+        else
+            lowerTimes(mat, 3 * n, zz.data(), scale, out.data());
         return;
     }
     // B z = mu^(1/2) z by Lanczos, matrix-free (the pair loop of the velocities)

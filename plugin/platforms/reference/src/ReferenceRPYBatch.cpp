@@ -29,8 +29,9 @@ inline const vector<double>& data(const StateVector& v) { return static_cast<con
 
 // --- a copy's backend ----------------------------------------------------------------------------
 
-CopyBackend::CopyBackend(ReferenceRPYBatch& batch, int copy, int numBeads, const RPYIntegrator& integrator, int threads)
-    : BatchedBackend<ReferenceRPYBackend>(batch, copy, numBeads, integrator), threads(threads) {}
+CopyBackend::CopyBackend(ReferenceRPYBatch& batch, int copy, int numBeads, const RPYIntegrator& integrator, int threads,
+                         bool singleForces)
+    : BatchedBackend<ReferenceRPYBackend>(batch, copy, numBeads, integrator, singleForces), threads(threads) {}
 
 void CopyBackend::factorNoise(const StateVector& y) {
     if (lanczosNoise() || threads < 2) {
@@ -44,8 +45,8 @@ void CopyBackend::factorNoise(const StateVector& y) {
 
 // --- the batch -----------------------------------------------------------------------------------
 
-ReferenceRPYBatch::ReferenceRPYBatch(const System& system, const RPYIntegrator& integrator)
-    : CopyBatch(system, integrator) {
+ReferenceRPYBatch::ReferenceRPYBatch(const System& system, const RPYIntegrator& integrator, bool singleForces)
+    : CopyBatch(system, integrator), singleForces(singleForces) {
     threads = integrator.getNumThreads();
 #ifdef __linux__
     CPU_ZERO(&cores);
@@ -60,7 +61,7 @@ ReferenceRPYBatch::~ReferenceRPYBatch() {}
 
 std::unique_ptr<RPYBackend> ReferenceRPYBatch::makeBackend(int copy, const RPYIntegrator& settings) {
     // the copy's settings say one thread; the batch's count decides where factors are made
-    return std::unique_ptr<RPYBackend>(new CopyBackend(*this, copy, n, settings, threads));
+    return std::unique_ptr<RPYBackend>(new CopyBackend(*this, copy, n, settings, threads, singleForces));
 }
 
 void ReferenceRPYBatch::readContextPositions(ContextImpl& context, int copy, StateVector& positions) {
