@@ -309,10 +309,17 @@ def resolve(integrator: str, peclet: float, timestep: float | None) -> tuple[str
     return name, float(timestep)
 
 
-#: Above this Peclet number the adaptive Brownian default tolerance shrinks as kT^1.5.
+#: The Peclet number at which the adaptive Brownian default tolerance is ``default_tolerance``:
+#: above it the tolerance shrinks as kT^1.5, below it grows as kT^0.5.
 BROWNIAN_TOLERANCE_PECLET = 10.0
 #: The exponent of that shrinking: tolerance = default (BROWNIAN_TOLERANCE_PECLET / Pe)^this.
 BROWNIAN_TOLERANCE_EXPONENT = 1.5
+#: The exponent of the growth below BROWNIAN_TOLERANCE_PECLET: with the bonds' thermal spread
+#: ``sqrt(kT / B)``, so that the tolerance stays 0.44 of it (0.02 d of 0.045 d at Pe = 10).
+BROWNIAN_TOLERANCE_LOW_EXPONENT = 0.5
+#: Below this Peclet number the tolerance grows no further: the lowest Pe it was checked at
+#: against the Monte Carlo (0.089 d).
+BROWNIAN_TOLERANCE_LOWEST_PECLET = 0.5
 
 
 def resolve_tolerance(name: str, tolerance: float | None, peclet: float = math.inf) -> float:
@@ -321,10 +328,14 @@ def resolve_tolerance(name: str, tolerance: float | None, peclet: float = math.i
     An unset tolerance is :data:`DEFAULT_TOLERANCE` (1e-4 d) for the deterministic adaptive
     integrators. For the adaptive Brownian one, whose error estimate carries the noise
     displacement (``knotmm.dynamics.adaptive_brownian``), it is the entry's
-    ``default_tolerance`` (0.02 d) up to ``Pe = 10`` and ``0.02 (10 / Pe)^1.5`` above. The
-    tolerance has to stay well below the thermal spread of the stiffest bonds, ``sqrt(kT / B)``
-    (0.045 d at Pe = 10, where 0.02 showed no bias against a Monte Carlo and 0.05 shortened the
-    bond-length spread by 1 %), which shrinks as ``sqrt(1 / Pe)``; that alone (0.0089 d at
+    ``default_tolerance`` (0.02 d) at ``Pe = 10``, ``0.02 (10 / Pe)^0.5`` below (0.045 d at
+    Pe = 2, 0.063 d at Pe = 1, 0.089 d from Pe = 0.5 down) and ``0.02 (10 / Pe)^1.5`` above.
+    The tolerance has to stay well below the thermal spread of the stiffest bonds,
+    ``sqrt(kT / B)`` (0.045 d at Pe = 10, where 0.02 showed no bias against a Monte Carlo and
+    0.05 shortened the bond-length spread by 1 %), which grows as ``sqrt(1 / Pe)``: below
+    Pe = 10 the tolerance keeps that ratio, and at Pe = 0.5, 1 and 2 it matched the Monte
+    Carlo's bond spread, bending and 1-3 distance as 0.02 d did, in half the steps
+    (``benchmarks/README.md``). Above Pe = 10 the spread alone (0.0089 d at
     Pe = 50) was not enough for the sedimenting torus: at Pe = 50 (T(2,3), N = 60) it opened the
     torus (Rg_perp +0.17 d) and slowed it by 2.8 % (paired replicas, 4 standard errors), while
     0.002 d agreed with ``ito_heun`` at dt = 0.001 (``benchmarks/README.md``). The exponent 1.5
@@ -335,8 +346,9 @@ def resolve_tolerance(name: str, tolerance: float | None, peclet: float = math.i
         return float(tolerance)
     info = _info(name)
     if info.brownian and info.adaptive and math.isfinite(float(peclet)):
-        scale = min(1.0, BROWNIAN_TOLERANCE_PECLET / float(peclet)) ** BROWNIAN_TOLERANCE_EXPONENT
-        return max(info.default_tolerance * scale, DEFAULT_TOLERANCE)
+        ratio = BROWNIAN_TOLERANCE_PECLET / max(float(peclet), BROWNIAN_TOLERANCE_LOWEST_PECLET)
+        exponent = BROWNIAN_TOLERANCE_EXPONENT if ratio < 1.0 else BROWNIAN_TOLERANCE_LOW_EXPONENT
+        return max(info.default_tolerance * ratio**exponent, DEFAULT_TOLERANCE)
     return info.default_tolerance
 
 
@@ -377,9 +389,11 @@ def timestep_help() -> str:
 def tolerance_help() -> str:
     """The help of ``run.tolerance``, with the defaults of :func:`resolve_tolerance`."""
     brownian = "; ".join(
-        f"{i.name}: {i.default_tolerance:g}, times ({BROWNIAN_TOLERANCE_PECLET:g} / Pe)^"
-        f"{BROWNIAN_TOLERANCE_EXPONENT:g} above Pe = {BROWNIAN_TOLERANCE_PECLET:g}, at least "
-        f"{DEFAULT_TOLERANCE:g}" for i in REGISTRY.values() if i.adaptive and i.brownian)
+        f"{i.name}: {i.default_tolerance:g} times ({BROWNIAN_TOLERANCE_PECLET:g} / Pe)^"
+        f"{BROWNIAN_TOLERANCE_LOW_EXPONENT:g} below Pe = {BROWNIAN_TOLERANCE_PECLET:g} (Pe taken "
+        f"as at least {BROWNIAN_TOLERANCE_LOWEST_PECLET:g}) and ^{BROWNIAN_TOLERANCE_EXPONENT:g} "
+        f"above, at least {DEFAULT_TOLERANCE:g}"
+        for i in REGISTRY.values() if i.adaptive and i.brownian)
     return (f"adaptive integrators: local error per step, in d; default {DEFAULT_TOLERANCE:g} "
             f"({brownian})")
 

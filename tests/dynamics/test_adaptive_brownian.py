@@ -145,10 +145,14 @@ def test_default_tolerance_is_the_registry_one():
     assert resolve_tolerance("rk23", None) == 1e-4
 
 
-def test_default_tolerance_shrinks_as_kt_to_the_1_5_above_pe_10():
+def test_default_tolerance_grows_with_the_bond_spread_below_pe_10_and_shrinks_above():
     from knotmm.dynamics.registry import resolve_tolerance
 
-    assert resolve_tolerance("ito_heun_adaptive", None, 1.0) == 0.02
+    # below Pe = 10 with the bonds' thermal spread sqrt(kT / B), down to Pe = 0.5
+    assert resolve_tolerance("ito_heun_adaptive", None, 1.0) == pytest.approx(0.02 * 10**0.5)
+    assert resolve_tolerance("ito_heun_adaptive", None, 2.0) == pytest.approx(0.0447214, rel=1e-5)
+    assert resolve_tolerance("ito_heun_adaptive", None, 0.5) == pytest.approx(0.02 * 20**0.5)
+    assert resolve_tolerance("ito_heun_adaptive", None, 0.1) == pytest.approx(0.02 * 20**0.5)
     assert resolve_tolerance("ito_heun_adaptive", None, 10.0) == 0.02
     assert resolve_tolerance("ito_heun_adaptive", None, 40.0) == pytest.approx(0.02 / 8)
     assert resolve_tolerance("ito_heun_adaptive", None, 50.0) == pytest.approx(0.0017889, rel=1e-4)

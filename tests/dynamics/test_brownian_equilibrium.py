@@ -22,7 +22,6 @@ Model units: d = 1, F0 = 1, tau_d = 1; ``kT = 1 / Pe``.
 
 from __future__ import annotations
 
-import inspect
 import math
 import time
 
@@ -33,6 +32,7 @@ import reference_model as rm
 
 from knotmm.dynamics.adaptive_brownian import AdaptiveItoHeun
 from knotmm.dynamics.deterministic import StepSizeUnderflow
+from knotmm.dynamics.registry import resolve_tolerance
 from knotmm.engine.simulation import Simulation
 from knotmm.model.system import ChainModel
 from knotmm.shapes.geometry import torus_knot
@@ -136,8 +136,9 @@ def compare(dyn: dict, ref: dict, n_blocks: int = 20, knot: str | None = None) -
     return out
 
 
-def default_tolerance() -> float:
-    return inspect.signature(AdaptiveItoHeun.__init__).parameters["tolerance"].default
+def default_tolerance(peclet: float) -> float:
+    """The tolerance a run at ``peclet`` takes when none is given (the registry's rule)."""
+    return resolve_tolerance("ito_heun_adaptive", None, peclet)
 
 
 # -- the Monte Carlo, checked (fast) ---------------------------------------------------------------
@@ -253,7 +254,8 @@ SEEDS = {0.5: 1, 1.0: 2, 2.0: 3, 10.0: 4}
 @pytest.mark.slow
 @pytest.mark.parametrize("peclet", sorted(DURATION))
 def test_adaptive_ito_heun_boltzmann(peclet):
-    """AdaptiveItoHeun at its default tolerance samples the Monte Carlo's equilibrium.
+    """AdaptiveItoHeun at the tolerance a run takes at this Pe samples the Monte Carlo's
+    equilibrium.
 
     Both sides are compared in one knot type. The energy lets bonds pass through each other,
     and the knot type shifts the mean cosine by about 1 % (0.889 trefoil, 0.902 unknot at
@@ -269,7 +271,7 @@ def test_adaptive_ito_heun_boltzmann(peclet):
     kT = 1.0 / peclet
     knot = JUDGED_KNOT[peclet]
     integ = AdaptiveItoHeun(0.002, peclet=peclet, seed=SEEDS[peclet], noise="cholesky",
-                            tolerance=default_tolerance(), max_timestep=0.05)  # as measured
+                            tolerance=default_tolerance(peclet), max_timestep=0.05)  # as measured
     dyn = sample_brownian(integ, DURATION[peclet], BURN_IN)
     n_used = len(select_samples(dyn, knot))
     used = n_used * dyn["sample_every"]

@@ -203,7 +203,7 @@ def test_every_class_built_without_arguments_has_the_registrys_defaults(name):
     # what a run resolves for it from an unset run.timestep and run.tolerance
     assert registry.resolve(name, 2.0, None) == (name, info.default_timestep)
     if info.adaptive:
-        assert registry.resolve_tolerance(name, None, 2.0) == info.default_tolerance
+        assert registry.resolve_tolerance(name, None, 10.0) == info.default_tolerance
 
 
 def test_the_noise_defaults_are_the_registrys():
