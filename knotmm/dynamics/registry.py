@@ -95,10 +95,10 @@ DEFAULT_BROWNIAN_TIMESTEP = 0.002
 DEFAULT_LM_TIMESTEP = 0.01
 #: ``run.tolerance`` of the deterministic adaptive integrators when none is given, in d.
 DEFAULT_TOLERANCE = 1e-4
-#: ``run.tolerance`` of ``ito_heun_adaptive`` up to Pe = 10 when none is given, in d: the
-#: largest that showed no bias against a Metropolis Monte Carlo at Pe = 0.5-10 (0.05
-#: shortened the bond-length spread by 0.9-1.4 % at Pe = 10;
-#: ``benchmarks/validate_brownian_equilibrium.py``); :func:`resolve_tolerance` shrinks it above.
+#: ``run.tolerance`` of ``ito_heun_adaptive`` at Pe = 10 when none is given, in d: no bias
+#: against a Metropolis Monte Carlo there (0.05 shortened the bond-length spread by 0.9-1.4 %;
+#: ``benchmarks/validate_brownian_equilibrium.py``); :func:`resolve_tolerance` scales it with
+#: Pe on either side.
 DEFAULT_BROWNIAN_TOLERANCE = 0.02
 #: Largest step of the adaptive integrators (``run.max_timestep``), in tau_d.
 DEFAULT_MAX_TIMESTEP = 1.0
@@ -274,9 +274,9 @@ def resolve(integrator: str, peclet: float, timestep: float | None) -> tuple[str
     may take ``rkc2`` instead: :func:`auto_deterministic`) and ``ito_heun_adaptive`` at a
     finite Peclet number: its steps shrink at close steric contacts, where every fixed step
     of 0.01 tau_d breaks down at Pe <~ 1 (``leimkuhler_matthews`` at 0.01 failed 3 runs of 3
-    at Pe = 1, N = 90), and at its default tolerance (0.02 d) the bond length, bending and
-    1-3 distance statistics agree with a Metropolis Monte Carlo within 0.5 % at Pe = 0.5-10
-    (``benchmarks/README.md``). An
+    at Pe = 1, N = 90), and at its default tolerance (:func:`resolve_tolerance`) the bond
+    length, bending and 1-3 distance statistics agree with a Metropolis Monte Carlo within
+    0.5 % at Pe = 0.5-10 (``benchmarks/README.md``). An
     unset step is the integrator's ``default_timestep`` at finite Pe
     (:data:`DEFAULT_BROWNIAN_TIMESTEP` for the Brownian ones) and :data:`DEFAULT_TIMESTEP`
     at ``Pe = inf`` (where a Brownian integrator has no noise and is its deterministic
