@@ -424,10 +424,12 @@ def test_integrator_from_config():
     em = integrator_from_config(RunConfig.from_dict({"run": {"integrator": "euler_maruyama"}}))
     assert em.kT == 0.0
     # finite Pe alone: integrator "auto" and no timestep or tolerance give ito_heun_adaptive,
-    # first step 0.002 tau_d, tolerance 0.02 d
+    # first step 0.002 tau_d, tolerance 0.02 (10 / Pe)^0.5 d (0.02 d at Pe = 10)
     auto = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 2.0}}))
-    assert (auto.name, auto.timestep, auto.kT, auto.tolerance) == (
-        "ito_heun_adaptive", 0.002, 0.5, 0.02)
+    assert (auto.name, auto.timestep, auto.kT) == ("ito_heun_adaptive", 0.002, 0.5)
+    assert auto.tolerance == pytest.approx(0.02 * 5**0.5, rel=1e-12)
+    at_ten = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 10.0}}))
+    assert at_ten.tolerance == 0.02
     # ito_heun without a step gets 0.002 tau_d; an explicit step is kept; a deterministic
     # auto run keeps rk23 and 0.01 tau_d
     heun = integrator_from_config(RunConfig.from_dict({"run": {"peclet": 2.0,

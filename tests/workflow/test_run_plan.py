@@ -124,15 +124,21 @@ def test_chain_config_is_the_entry_as_a_knot_table_without_validating_again(coun
     assert sub.replace({"knot.seed": 3})["knot.seed"] == 3
 
 
+#: ito_heun_adaptive's default tolerance at Pe = 2: 0.02 (10 / Pe)^0.5 d.
+TOLERANCE_AT_PE_2 = 0.02 * 5**0.5
+
+
 def test_the_plan_holds_every_decision():
     plan = make_plan(_cfg(2.0, peclet=2.0, platform="Reference", seed=11))
     assert isinstance(plan, RunPlan)
     assert plan.stepping == Stepping(
-        integrator="ito_heun_adaptive", timestep=0.002, tolerance=0.02, max_timestep=1.0,
+        integrator="ito_heun_adaptive", timestep=0.002, tolerance=TOLERANCE_AT_PE_2,
+        max_timestep=1.0,
         min_timestep=1e-7, peclet=2.0, kT=0.5, seed=11, noise="auto",
         noise_method="cholesky", lanczos_tolerance=plan.config["run.lanczos_tolerance"])
     assert plan.config["run.integrator"] == "ito_heun_adaptive"
-    assert plan.config["run.tolerance"] == 0.02 and plan.config["knot.major_radius"] > 0
+    assert plan.config["run.tolerance"] == TOLERANCE_AT_PE_2
+    assert plan.config["knot.major_radius"] > 0
     assert plan.reasons["integrator_choice"].startswith("auto at run.peclet = 2:")
     assert plan.placement.platform == "Reference" and plan.placement.precision == "double"
     assert plan.resources == RunResources(brownian=True, noise="auto",

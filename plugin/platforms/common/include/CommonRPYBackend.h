@@ -124,9 +124,9 @@ private:
     OpenMM::ComputeProgram program;                                // kernels/rpy.cc, shared by a batch's copies
     std::shared_ptr<std::map<std::string, OpenMM::ComputeProgram>> combinePrograms;  // by pattern, shared too
     std::map<std::string, OpenMM::ComputeKernel> combineKernels;  // by pattern of terms
-    std::vector<double> host, hostOut, noiseAtHost, mat;           // host scratch
-    std::vector<float> matSingle;                                  // the factor in single precision
-    bool singleFactor = false;                                     // matSingle, else mat
+    std::vector<double> host, hostOut, noiseAtHost;                // host scratch
+    CholeskyFactor cholesky;                                       // the noise factor, on the host
+    bool singleFactor = false;                                     // it in float, else in double
 };
 
 /** The integrator's kernel on a device platform: the stepper over CommonRPYBackend. */

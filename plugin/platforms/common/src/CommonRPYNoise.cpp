@@ -24,16 +24,7 @@ void CommonRPYBackend::factorNoise(const StateVector& y) {
     for (int b = 0; b < n; b++)
         for (int k = 0; k < 3; k++)
             noiseAtHost[k * n + b] = host[3 * b + k];
-    bool factored;
-    if (singleFactor) {
-        hostMobility.lowerMatrix(n, noiseAtHost.data(), matSingle);
-        factored = choleskyLower(matSingle, 3 * n);
-    }
-    else {
-        hostMobility.lowerMatrix(n, noiseAtHost.data(), mat);
-        factored = choleskyLower(mat, 3 * n);
-    }
-    if (!factored)
+    if (!cholesky.factor(hostMobility, n, noiseAtHost.data(), singleFactor))
         throw RPYStepFault(RPYStepFault::NotPositiveDefinite,
                            "RPYIntegrator: the RPY mobility is not positive definite at these "
                            "positions (two beads at the same point?)");
@@ -46,10 +37,7 @@ void CommonRPYBackend::applyNoise(double scale, const StateVector& z, StateVecto
     }
     data(z).download(host);
     hostOut.resize(3 * n);
-    if (singleFactor)
-        lowerTimes(matSingle, 3 * n, host.data(), scale, hostOut.data());
-    else
-        lowerTimes(mat, 3 * n, host.data(), scale, hostOut.data());
+    cholesky.times(host.data(), scale, hostOut.data());
     data(out).upload(hostOut);
 }
 

@@ -95,6 +95,24 @@ void lowerTimes(const std::vector<double>& lower, int n, const double* xi, doubl
 void lowerTimes(const std::vector<float>& lower, int n, const double* xi, double scale, double* out);
 
 /**
+ * The dense Cholesky noise factor L (L L^T = mu) of a backend, on the host, in double or in
+ * single precision (RPYIntegrator::setNoisePrecision; usesSingleFactor).
+ */
+class CholeskyFactor {
+public:
+    /** L of mu(x) (x structure of arrays, 3n), in float if `single`; false if not SPD. */
+    bool factor(const RPYMobility& mobility, int n, const double* x, bool single);
+    /** out = scale L xi, 3n numbers (the sums in double). */
+    void times(const double* xi, double scale, double* out) const;
+
+private:
+    bool single = false;
+    int dim = 0;
+    std::vector<double> wide;   // the matrix, then its factor, in double
+    std::vector<float> narrow;  // the same in float
+};
+
+/**
  * Eigen-decomposition of the symmetric tridiagonal k x k matrix with diagonal `diag` (k numbers)
  * and off-diagonal `off` (k - 1 numbers): eigenvalues into `values` (k), eigenvectors as the
  * columns of the column-major `vectors` (k x k), by LAPACK's dstev, set with

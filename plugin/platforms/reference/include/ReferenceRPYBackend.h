@@ -81,11 +81,11 @@ private:
     RPYMobility mobility;
     bool lanczos = false;
     bool singleForces;          // the platform's forces are single precision
-    bool singleFactor = false;  // the Cholesky factor in float (matSingle), else in double (mat)
+    bool singleFactor = false;  // the Cholesky factor in float, else in double
     double lanczosTolerance = 1e-6;
     LanczosSqrt lanczosSqrt;
-    std::vector<double> xs, fs, vs, zs, mat;  // scratch: structure-of-arrays copies, the matrix
-    std::vector<float> matSingle;             // the matrix and its factor in single precision
+    std::vector<double> xs, fs, vs, zs;  // scratch: structure-of-arrays copies
+    CholeskyFactor cholesky;             // the noise factor of the last factorNoise
     std::vector<double> noiseAt;              // factorNoise's positions, structure of arrays
     std::vector<OpenMM::Vec3> beadForces;     // scratch: the beads' forces when sites sit among them
 };

@@ -185,28 +185,47 @@ bool KnotMM::choleskyLower(std::vector<float>& a, int n) {
     return true;
 }
 
-KNOTMM_CLONES
-void KnotMM::lowerTimes(const std::vector<double>& lower, int n, const double* xi, double scale, double* out) {
+namespace {
+template <class Real>
+inline void lowerTimesOf(const std::vector<Real>& lower, int n, const double* xi, double scale, double* out) {
     for (int i = 0; i < n; i++) {
-        const double* li = &lower[(size_t) i * n];
-        double s = 0.0;
-#pragma omp simd reduction(+ : s)
-        for (int k = 0; k <= i; k++)
-            s += li[k] * xi[k];
-        out[i] = scale * s;
-    }
-}
-
-KNOTMM_CLONES
-void KnotMM::lowerTimes(const std::vector<float>& lower, int n, const double* xi, double scale, double* out) {
-    for (int i = 0; i < n; i++) {
-        const float* li = &lower[(size_t) i * n];
+        const Real* li = &lower[(size_t) i * n];
         double s = 0.0;
 #pragma omp simd reduction(+ : s)
         for (int k = 0; k <= i; k++)
             s += (double) li[k] * xi[k];
         out[i] = scale * s;
     }
+}
+} // namespace
+
+// One body for both precisions, compiled for each target of the clones.
+KNOTMM_CLONES
+void KnotMM::lowerTimes(const std::vector<double>& lower, int n, const double* xi, double scale, double* out) {
+    lowerTimesOf(lower, n, xi, scale, out);
+}
+
+KNOTMM_CLONES
+void KnotMM::lowerTimes(const std::vector<float>& lower, int n, const double* xi, double scale, double* out) {
+    lowerTimesOf(lower, n, xi, scale, out);
+}
+
+bool CholeskyFactor::factor(const RPYMobility& mobility, int n, const double* x, bool single) {
+    this->single = single;
+    dim = 3 * n;
+    if (single) {
+        mobility.lowerMatrix(n, x, narrow);
+        return choleskyLower(narrow, dim);
+    }
+    mobility.lowerMatrix(n, x, wide);
+    return choleskyLower(wide, dim);
+}
+
+void CholeskyFactor::times(const double* xi, double scale, double* out) const {
+    if (single)
+        lowerTimes(narrow, dim, xi, scale, out);
+    else
+        lowerTimes(wide, dim, xi, scale, out);
 }
 
 KNOTMM_CLONES

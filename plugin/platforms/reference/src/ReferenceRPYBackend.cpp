@@ -165,16 +165,7 @@ void ReferenceRPYBackend::factorNoise(const StateVector& y) {
     if (lanczos)
         return;  // matrix-free: applyNoise runs the Krylov iteration at noiseAt
     // exact: the dense Cholesky factor of the 3n x 3n mobility
-    bool factored;
-    if (singleFactor) {
-        mobility.lowerMatrix(n, noiseAt.data(), matSingle);
-        factored = choleskyLower(matSingle, 3 * n);
-    }
-    else {
-        mobility.lowerMatrix(n, noiseAt.data(), mat);
-        factored = choleskyLower(mat, 3 * n);
-    }
-    if (!factored)
+    if (!cholesky.factor(mobility, n, noiseAt.data(), singleFactor))
         throw RPYStepFault(RPYStepFault::NotPositiveDefinite,
                            "RPYIntegrator: the RPY mobility is not positive definite at these "
                            "positions (two beads at the same point?)");
@@ -184,10 +175,7 @@ void ReferenceRPYBackend::applyNoise(double scale, const StateVector& z, StateVe
     const vector<double>& zz = data(z);
     vector<double>& out = data(outVector);
     if (!lanczos) {
-        if (singleFactor)
-            lowerTimes(matSingle, 3 * n, zz.data(), scale, out.data());
-        else
-            lowerTimes(mat, 3 * n, zz.data(), scale, out.data());
+        cholesky.times(zz.data(), scale, out.data());
         return;
     }
     // B z = mu^(1/2) z by Lanczos, matrix-free (the pair loop of the velocities)
