@@ -451,24 +451,20 @@ else:
 
 
 
-def noise_factor_precision(force_precision: str, setting: str = "auto") -> str:
-    """The precision the plugin factorises the mobility in for Cholesky noise.
+def noise_factor_precision(force_precision: str) -> str:
+    """The precision the plugin factorises the mobility in for Cholesky noise, at its default
+    ``RPYIntegrator`` noise precision ``"auto"`` (knotmm's runs), as its backends resolve it.
 
     Parameters
     ----------
     force_precision : {"single", "mixed", "double"}
         The platform's force precision (:class:`knotmm.plan.Placement`).
-    setting : {"auto", "single", "double"}
-        ``RPYIntegrator.getNoisePrecision()``; ``"auto"`` (knotmm's runs) is resolved as the
-        plugin's backends resolve it: single where the forces are single or mixed precision.
 
     Returns
     -------
     str
-        ``"single"`` or ``"double"``.
+        ``"single"`` where the forces are single or mixed precision, else ``"double"``.
     """
-    if setting != "auto":
-        return setting
     return "single" if force_precision in ("single", "mixed") else "double"
 
 

@@ -23,10 +23,11 @@ extern "C" void registerRPYKernelFactories();
 // across minor versions).
 static const char* builtAgainstOpenMMVersion() { return KNOTMM_OPENMM_BUILD_VERSION; }
 
-// The lower Cholesky factor of a symmetric positive definite matrix (array_like, n x n) as the
-// steps compute it: choleskyLower (LAPACK when a routine is set) or, with builtin=True, the
-// built-in routine. For tests; raises ValueError if the matrix is not positive definite.
-static PyObject* choleskyFactor(PyObject* matrix, bool builtin) {
+// The lower Cholesky factor of a symmetric positive definite matrix (array_like, n x n), as
+// `factorise` makes it in the Real of its vector, returned as a double array. For the tests'
+// helpers below; raises ValueError if the matrix is not square or not positive definite.
+template <class Real, class Factorise>
+static PyObject* factorOf(PyObject* matrix, Factorise factorise) {
     PyArrayObject* in = (PyArrayObject*) PyArray_FROMANY(matrix, NPY_DOUBLE, 2, 2, NPY_ARRAY_CARRAY_RO);
     if (in == NULL)
         return NULL;
@@ -37,10 +38,9 @@ static PyObject* choleskyFactor(PyObject* matrix, bool builtin) {
         return NULL;
     }
     const double* data = (const double*) PyArray_DATA(in);
-    std::vector<double> a(data, data + n * n);
+    std::vector<Real> a(data, data + n * n);
     Py_DECREF(in);
-    const bool ok = builtin ? KnotMM::choleskyLowerBuiltin(a, (int) n) : KnotMM::choleskyLower(a, (int) n);
-    if (!ok) {
+    if (!factorise(a, (int) n)) {
         PyErr_SetString(PyExc_ValueError, "matrix: not positive definite");
         return NULL;
     }
@@ -51,31 +51,18 @@ static PyObject* choleskyFactor(PyObject* matrix, bool builtin) {
     return out;
 }
 
-// The lower Cholesky factor in single precision as the steps compute it with a noise precision
-// of "single" (the matrix rounded to float, then spotrf when handed over), returned in double.
-// For tests; raises ValueError if the matrix is not positive definite.
+// The factor as the steps compute it: choleskyLower (LAPACK when a routine is set) or, with
+// builtin=True, the built-in routine. For tests.
+static PyObject* choleskyFactor(PyObject* matrix, bool builtin) {
+    return factorOf<double>(matrix, [builtin](std::vector<double>& a, int n) {
+        return builtin ? KnotMM::choleskyLowerBuiltin(a, n) : KnotMM::choleskyLower(a, n);
+    });
+}
+
+// The factor in single precision as the steps compute it with a noise precision of "single"
+// (the matrix rounded to float, then spotrf when handed over). For tests.
 static PyObject* singleCholeskyFactor(PyObject* matrix) {
-    PyArrayObject* in = (PyArrayObject*) PyArray_FROMANY(matrix, NPY_DOUBLE, 2, 2, NPY_ARRAY_CARRAY_RO);
-    if (in == NULL)
-        return NULL;
-    const npy_intp n = PyArray_DIM(in, 0);
-    if (PyArray_DIM(in, 1) != n) {
-        Py_DECREF(in);
-        PyErr_SetString(PyExc_ValueError, "matrix: expected a square array");
-        return NULL;
-    }
-    const double* data = (const double*) PyArray_DATA(in);
-    std::vector<float> a(data, data + n * n);
-    Py_DECREF(in);
-    if (!KnotMM::choleskyLower(a, (int) n)) {
-        PyErr_SetString(PyExc_ValueError, "matrix: not positive definite");
-        return NULL;
-    }
-    npy_intp dims[2] = {n, n};
-    PyObject* out = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
-    if (out != NULL)
-        std::copy(a.begin(), a.end(), (double*) PyArray_DATA((PyArrayObject*) out));
-    return out;
+    return factorOf<float>(matrix, [](std::vector<float>& a, int n) { return KnotMM::choleskyLower(a, n); });
 }
 
 // mu(x)^(1/2) z by the steps' Lanczos routine (LanczosSqrt): positions (n, 3) and z (3n
