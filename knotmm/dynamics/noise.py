@@ -34,7 +34,6 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-import scipy.linalg
 
 from knotmm.dynamics.registry import DEFAULT_LANCZOS_TOLERANCE
 from knotmm.errors import ConfigError, SimulationFault
@@ -129,6 +128,8 @@ def mobility_cholesky(positions) -> np.ndarray:
         If the mobility is not numerically positive definite (two beads at exactly the same
         point make it singular).
     """
+    import scipy.linalg  # noqa: PLC0415 - 0.3 s, kept out of the plugin engine's runs
+
     from knotmm.dynamics.mobility import rpy_matrix  # numba: only the Python engine's noise
 
     x = _positions(positions)
@@ -199,6 +200,8 @@ def lanczos_sqrt(
     LanczosConvergenceError
         If ``max_iter < n`` iterations do not reach the tolerance.
     """
+    import scipy.linalg  # noqa: PLC0415 - 0.3 s, kept out of the plugin engine's runs
+
     z = np.asarray(z, dtype=np.float64).reshape(-1)
     n = z.size
     if not tolerance > 0:

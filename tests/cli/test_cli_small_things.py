@@ -12,6 +12,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -235,3 +236,16 @@ def test_version_into_a_pipe_closed_early_is_no_traceback():
     proc.wait(timeout=120)
     proc.stderr.close()
     assert "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_the_version_has_one_owner_that_the_installed_metadata_and_citation_follow():
+    """``knotmm/__init__.py`` holds the version; the build reads it from there (pyproject's
+    regex provider), and CITATION.cff states it too."""
+    from importlib.metadata import version
+
+    root = Path(knotmm.__file__).resolve().parent.parent
+    assert version("knotmm") == knotmm.__version__
+    pyproject = (root / "pyproject.toml").read_text()
+    assert 'dynamic = ["version"]' in pyproject and "\nversion =" not in pyproject
+    citation = (root / "CITATION.cff").read_text()
+    assert f"\nversion: {knotmm.__version__}\n" in citation
