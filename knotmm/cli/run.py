@@ -216,11 +216,13 @@ def _report(result) -> None:
 
 
 def execute(args) -> int:
-    """Run and print the knot-type changes and the one-line summary."""
-    from knotmm.engine.interrupt import stop_between_steps
-    from knotmm.replicas import identical_replicas_note
-    from knotmm.replicas import resume_replicas as resume
-    from knotmm.replicas import run_replicas as run
+    """Run and print the knot-type changes and the one-line summary.
+
+    The knot worker starts as soon as the input is read (before the imports of the run's
+    modules), so that topoly's import (about 1.5 s in its own process) overlaps all of the
+    run's start and a short run's last checks wait for it less (:func:`start_worker`).
+    """
+    from knotmm.knots.identify import start_worker
 
     if args.resume:
         given = [o for o, v in (("RUN.toml", args.run_file), ("--out", args.out),
@@ -233,12 +235,21 @@ def execute(args) -> int:
                 f"--resume takes no other run options but --duration (got "
                 f"{', '.join(given)}): a resumed run keeps the parameters in its run.toml"
             )
+        start_worker()
+        from knotmm.engine.interrupt import stop_between_steps
+        from knotmm.replicas import resume_replicas as resume
+
         # Ctrl-C / SIGTERM: finish the step, checkpoint that state, then stop (exit 130)
         with stop_between_steps():  # a signal once the run is recorded: no stop left to make
             result = resume(args.resume, progress=args.progress, duration=args.duration)
             _report(result)
         return 3 if getattr(result, "errors", None) else 0  # a replica broke down
     cfg = config_from_args(args)
+    start_worker()
+    from knotmm.engine.interrupt import stop_between_steps
+    from knotmm.replicas import identical_replicas_note
+    from knotmm.replicas import run_replicas as run
+
     identical = identical_replicas_note(cfg, int(cfg["run.replicas"]))
     if identical:
         print(f"knotmm: note: {identical}", file=sys.stderr)
