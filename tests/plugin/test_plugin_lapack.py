@@ -3,6 +3,10 @@ single-precision noise factor) against its built-in routine and numpy's factor."
 
 from __future__ import annotations
 
+import subprocess
+import sys
+import textwrap
+
 import numpy as np
 import pytest
 
@@ -23,6 +27,41 @@ def test_a_stochastic_integrator_switches_lapack_on():
     RPYIntegrator(0.01, "ito_heun", kT=0.5)
     assert kp.use_lapack_cholesky()
     assert kp.rpyplugin.getCholeskyRoutine() != 0
+
+
+def _in_a_fresh_interpreter(code: str) -> str:
+    """Run ``code`` in a new Python (where scipy.linalg is not imported yet); its stdout."""
+    done = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    return done.stdout.split()
+
+
+def test_lapack_is_found_without_running_scipy_linalg_init():
+    """The extension module is loaded from its file: scipy.linalg stays unimported, the
+    routines are there, and a later package import gets the very same module."""
+    out = _in_a_fresh_interpreter("""
+        import sys
+        import knotmm.plugin as kp
+        module = kp._cython_lapack()
+        print("scipy.linalg" in sys.modules)
+        print(all(n in module.__pyx_capi__ for n in ("dpotrf", "spotrf", "dstev")))
+        from scipy.linalg import cython_lapack
+        print(cython_lapack is module)
+    """)
+    assert out == ["False", "True", "True"]
+
+
+def test_lapack_falls_back_to_the_package_import_where_the_file_is_not_found():
+    out = _in_a_fresh_interpreter("""
+        import importlib.machinery, sys
+        importlib.machinery.EXTENSION_SUFFIXES[:] = [".not-an-extension"]
+        import knotmm.plugin as kp
+        module = kp._cython_lapack()
+        print("scipy.linalg" in sys.modules)
+        print("dpotrf" in module.__pyx_capi__)
+    """)
+    assert out == ["True", "True"]
 
 
 @pytest.mark.parametrize("positions", [torus_knot(2, 3, 90), compact_coil(90)],
