@@ -235,25 +235,23 @@ def execute(args) -> int:
                 f"--resume takes no other run options but --duration (got "
                 f"{', '.join(given)}): a resumed run keeps the parameters in its run.toml"
             )
-        start_worker()
-        from knotmm.engine.interrupt import stop_between_steps
-        from knotmm.replicas import resume_replicas as resume
-
-        # Ctrl-C / SIGTERM: finish the step, checkpoint that state, then stop (exit 130)
-        with stop_between_steps():  # a signal once the run is recorded: no stop left to make
-            result = resume(args.resume, progress=args.progress, duration=args.duration)
-            _report(result)
-        return 3 if getattr(result, "errors", None) else 0  # a replica broke down
-    cfg = config_from_args(args)
+    else:
+        cfg = config_from_args(args)
     start_worker()
     from knotmm.engine.interrupt import stop_between_steps
-    from knotmm.replicas import identical_replicas_note
-    from knotmm.replicas import run_replicas as run
+    from knotmm.replicas import identical_replicas_note, resume_replicas, run_replicas
 
+    if args.resume:
+        # Ctrl-C / SIGTERM: finish the step, checkpoint that state, then stop (exit 130)
+        with stop_between_steps():  # a signal once the run is recorded: no stop left to make
+            result = resume_replicas(args.resume, progress=args.progress,
+                                     duration=args.duration)
+            _report(result)
+        return 3 if getattr(result, "errors", None) else 0  # a replica broke down
     identical = identical_replicas_note(cfg, int(cfg["run.replicas"]))
     if identical:
         print(f"knotmm: note: {identical}", file=sys.stderr)
     with stop_between_steps():
-        result = run(cfg, overwrite=args.overwrite, progress=args.progress)
+        result = run_replicas(cfg, overwrite=args.overwrite, progress=args.progress)
         _report(result)
     return 3 if getattr(result, "errors", None) else 0  # a replica broke down
