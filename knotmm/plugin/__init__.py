@@ -299,10 +299,10 @@ def use_lapack_cholesky() -> bool:
     *work, int *info)``) and gives their addresses to the plugin (``setCholeskyRoutine``,
     ``setSingleCholeskyRoutine``, ``setTridiagonalEigenRoutine``), which then calls them for
     every noise sample (Cholesky factors; the Lanczos tridiagonal matrix's eigenvectors);
-    the module stays loaded (:func:`_cython_lapack`), so the library does. Without scipy (or
-    without the plugin) the plugin keeps its built-in Cholesky, cannot draw Lanczos noise, and
-    this returns False. Called by the first stochastic :class:`RPYIntegrator`, so that
-    deterministic runs never load LAPACK.
+    the module stays loaded (in ``sys.modules``: :func:`_cython_lapack`), so the library
+    does. Without scipy (or without the plugin) the plugin keeps its built-in Cholesky,
+    cannot draw Lanczos noise, and this returns False. Called by the first stochastic
+    :class:`RPYIntegrator`, so that deterministic runs never load LAPACK.
     """
     global _lapack
     if _lapack is None:
@@ -320,50 +320,45 @@ def use_lapack_cholesky() -> bool:
     return _lapack
 
 
-#: keeps the extension module (and so its LAPACK library) loaded for the process's life
-_lapack_module = None
-
-
 def _cython_lapack():
     """scipy's ``scipy.linalg.cython_lapack`` extension module, or None without scipy.
 
     Loaded from its file beside ``scipy/linalg/__init__.py`` without running that package's
     ``__init__`` (0.03-0.05 s against 0.33-0.39 s for ``from scipy.linalg import
-    cython_lapack``, measured 2026-12-06: a Brownian run's start). The module imports nothing
-    of ``scipy.linalg``; a later ``import scipy.linalg`` gets the same loaded module. Where the
-    file is not found or does not load (another scipy layout), the package import is used.
+    cython_lapack``, measured 2026-12-06: a Brownian run's start), and registered in
+    ``sys.modules`` under its own name, which keeps it (and its LAPACK library) loaded and
+    gives a later ``import scipy.linalg`` the same module. Where the file is not found or does
+    not load (another scipy layout), the package import is used. Called once, by
+    :func:`use_lapack_cholesky`.
     """
-    global _lapack_module
-    if _lapack_module is None:
-        import importlib.machinery  # noqa: PLC0415 - only stochastic runs need LAPACK
-        import importlib.util  # noqa: PLC0415
+    import importlib.machinery  # noqa: PLC0415 - only stochastic runs need LAPACK
+    import importlib.util  # noqa: PLC0415
 
+    name = "scipy.linalg.cython_lapack"
+    try:
+        import scipy  # noqa: PLC0415 - the bare package: 0.03 s
+    except ImportError:
+        return None
+    folder = Path(scipy.__file__).parent / "linalg"
+    files = [f for f in (folder / f"cython_lapack{suffix}" for suffix in
+                         importlib.machinery.EXTENSION_SUFFIXES) if f.is_file()]
+    if files and name not in sys.modules:
         try:
-            import scipy  # noqa: PLC0415 - the bare package: 0.03 s
-        except ImportError:
-            return None
-        folder = Path(scipy.__file__).parent / "linalg"
-        files = [f for f in (folder / f"cython_lapack{suffix}" for suffix in
-                             importlib.machinery.EXTENSION_SUFFIXES) if f.is_file()]
-        module = None
-        if files:
-            try:
-                spec = importlib.util.spec_from_file_location("scipy.linalg.cython_lapack",
-                                                              files[0])
-                module = importlib.util.module_from_spec(spec)
-                spec.loader.exec_module(module)
-                module.__pyx_capi__["spotrf"]  # noqa: B018 - fails here, not in the caller
-            except Exception as exc:  # noqa: BLE001 - any failure: the package import
-                log.debug("knotmm.plugin: %s did not load (%s); importing scipy.linalg",
-                          files[0], exc)
-                module = None
-        if module is None:
-            try:
-                from scipy.linalg import cython_lapack as module  # noqa: PLC0415
-            except ImportError:
-                return None
-        _lapack_module = module
-    return _lapack_module
+            spec = importlib.util.spec_from_file_location(name, files[0])
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[name] = module
+            spec.loader.exec_module(module)
+            module.__pyx_capi__["spotrf"]  # noqa: B018 - fails here, not in the caller
+            return module
+        except Exception as exc:  # noqa: BLE001 - any failure: the package import
+            sys.modules.pop(name, None)
+            log.debug("knotmm.plugin: %s did not load (%s); importing scipy.linalg",
+                      files[0], exc)
+    try:
+        from scipy.linalg import cython_lapack  # noqa: PLC0415
+    except ImportError:
+        return None
+    return cython_lapack
 
 
 def _capsule_address(capsule) -> int:
