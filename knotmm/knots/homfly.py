@@ -124,12 +124,34 @@ def preload() -> bool:
     bool
         Whether topoly could be imported.
     """
+    from knotmm.knots.topoly_import import import_topoly  # noqa: PLC0415 - worker only
+
     try:
         with _topoly_guard():
-            import topoly  # noqa: F401, PLC0415 - optional extra, imported lazily
+            import_topoly()
     except ImportError:
         return False
     return True
+
+
+def _homfly(coords: list, options: dict):
+    """topoly's HOMFLY-PT name for closed chains ``coords``; a call that reaches a module the
+    light import stood in for is repeated with topoly imported in full."""
+    from knotmm.knots.topoly_import import (  # noqa: PLC0415 - worker only
+        StandInUsed,
+        import_topoly,
+        import_topoly_in_full,
+    )
+
+    def call(topoly):
+        return topoly.homfly(coords, closure=topoly.params.Closure.CLOSED, run_parallel=False,
+                             cuda=False, **options)
+
+    try:
+        return call(import_topoly())
+    except StandInUsed as exc:
+        logger.debug("%s; importing topoly in full", exc)
+        return call(import_topoly_in_full())
 
 
 def identify_here(
@@ -145,9 +167,6 @@ def identify_here(
     topoly's for the link (:func:`knotmm.knots.identify.identify_link`), as topoly gives it.
     """
     x = np.asarray(positions, dtype=np.float64)
-    import topoly  # noqa: PLC0415 - optional extra, imported lazily
-    from topoly.params import Closure  # noqa: PLC0415
-
     # topoly projects the chain along a fixed axis; knotmm's templates are symmetric, and a
     # projection along their symmetry axis can give coincident crossings, on which topoly
     # 1.2.1 crashes (segmentation fault). A fixed generic rotation avoids such projections.
@@ -156,17 +175,10 @@ def identify_here(
         starts = np.cumsum([0, *components[:-1]])
         coords = [[[int(s + i + 1), *coords[s + i]] for i in range(n)]
                   for s, n in zip(starts, components, strict=True)]
+    options = {"chiral": chiral, "minimal": minimal, "max_cross": max_cross}
     with _topoly_guard():
         try:
-            result = topoly.homfly(
-                coords,
-                closure=Closure.CLOSED,
-                chiral=chiral,
-                minimal=minimal,
-                max_cross=max_cross,
-                run_parallel=False,
-                cuda=False,
-            )
+            result = _homfly(coords, options)
         except Exception as exc:  # topoly raises a variety of errors on odd input
             logger.warning("topoly could not identify the knot: %s", exc)
             return UNKNOWN

@@ -3,7 +3,8 @@
 topoly must never run in a process that simulates, analyses or belongs to someone else (a
 Dask worker, a notebook kernel): it closes file descriptor 0, prints from C, installs signal
 handlers, and has crashed the interpreter on some inputs (segmentation faults on symmetric
-projections, see :mod:`knotmm.knots.homfly`); its import alone costs seconds. So every knot
+projections, see :mod:`knotmm.knots.homfly`); its full import costs seconds
+(the worker's light one, :mod:`knotmm.knots.topoly_import`, under half a second). So every knot
 identification goes to one persistent worker process, started as its own module::
 
     python -P -m knotmm.knots.worker        (stdin: requests, stdout: replies)
