@@ -162,6 +162,16 @@ static void raiseStepFault(const KnotMM::RPYStepFault& fault) {
     Py_XDECREF(module);
 }
 
+// Raise openmm.OpenMMException (RuntimeError if it cannot be found) with a C++ exception's text.
+static void raiseOpenMMException(const char* what) {
+    PyObject* module = PyImport_ImportModule("openmm");
+    PyObject* type = module ? PyObject_GetAttrString(module, "OpenMMException") : NULL;
+    PyErr_Clear();
+    PyErr_SetString(type ? type : PyExc_RuntimeError, what);
+    Py_XDECREF(type);
+    Py_XDECREF(module);
+}
+
 // OpenMM's typemaps accept numpy arrays; they ask this first.
 static bool isNumpyAvailable() { return true; }
 %}
@@ -183,15 +193,35 @@ static bool isNumpyAvailable() { return true; }
         raiseStepFault(fault);
         SWIG_fail;
     } catch (std::exception& e) {
-        PyObject* module = PyImport_ImportModule("openmm");
-        PyObject* type = module ? PyObject_GetAttrString(module, "OpenMMException") : NULL;
-        PyErr_Clear();
-        PyErr_SetString(type ? type : PyExc_RuntimeError, e.what());
-        Py_XDECREF(type);
-        Py_XDECREF(module);
+        raiseOpenMMException(e.what());
         SWIG_fail;
     }
 }
+
+// The steps run without Python's global interpreter lock, as OpenMM's own Integrator.step
+// does: runs in other threads of the process (a replica set's, knotmm.engine.copies) step at
+// the same time. The integrator calls no Python while it steps (LAPACK's routines are C
+// function pointers taken beforehand).
+%define KNOTMM_STEP_WITHOUT_GIL(name)
+%exception KnotMM::RPYIntegrator::name {
+    PyThreadState* threadState = PyEval_SaveThread();
+    try {
+        $action
+    } catch (KnotMM::RPYStepFault& fault) {
+        PyEval_RestoreThread(threadState);
+        raiseStepFault(fault);
+        SWIG_fail;
+    } catch (std::exception& e) {
+        PyEval_RestoreThread(threadState);
+        raiseOpenMMException(e.what());
+        SWIG_fail;
+    }
+    PyEval_RestoreThread(threadState);
+}
+%enddef
+KNOTMM_STEP_WITHOUT_GIL(step)
+KNOTMM_STEP_WITHOUT_GIL(stepTo)
+KNOTMM_STEP_WITHOUT_GIL(stepToWithin)
 
 %feature("autodoc", "0");
 
