@@ -192,22 +192,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
         ),
         "threads": Key("int", 1, "CPU platform threads", 1, limits.MAX_THREADS,
                        why=limits.THREADS_WHY),
-        "mobility_threads": Key(
-            "int", 1,
-            "threads of the RPY pair loop (same trajectory); 2 threads on 2 cores: 1.3x at "
-            "N = 120, 1.6x at 240, 1.7x at 480; keep 1 when sweep workers fill the cores", 1,
-            limits.MAX_THREADS, why=limits.THREADS_WHY,
-        ),
+        "mobility_threads": Key("int", 1, "threads of the RPY pair loop (same trajectory); 2 "
+                                "threads on 2 cores: 1.3x at N = 120, 1.6x at 240, 1.7x at "
+                                "480; keep 1 when sweep workers fill the cores", 1,
+                                limits.MAX_THREADS, why=limits.THREADS_WHY),
         "seed": Key("int", 1, "random seed (noise, perturbations)", 0),
-        "replicas": Key(
-            "int", 1, "independent copies of the run, in one process, written to "
-            "DIR/replica_0 ... (each seeded from run.seed; knotmm.replicas)", 1,
-            limits.MAX_REPLICAS, why=limits.REPLICAS_WHY,
-        ),
+        "replicas": Key("int", 1, "independent copies of the run, in one process, written to "
+                        "DIR/replica_0 ... (each seeded from run.seed; knotmm.replicas)", 1,
+                        limits.MAX_REPLICAS, why=limits.REPLICAS_WHY),
         "replica_stepping": Key("str", "auto", "together (copies of one Context, where the "
                                 "plugin can), one_after_another (each equal to its single run "
                                 "bit for bit), or auto (together where measured faster)",
                                 choices=("auto", "together", "one_after_another")),
+        "replicas_at_once": Key("int", 0, "replicas (or groups of copies) stepping at the "
+                                "same time, each in a thread; 0: auto (the CPU cores over "
+                                "run.threads x run.mobility_threads; 1 on a device or the "
+                                "Python engine)", 0, limits.MAX_THREADS, why=limits.THREADS_WHY),
         "noise": Key(
             "str", "auto",
             "Brownian noise sqrt(mu) xi: auto (cholesky up to 300 beads, else lanczos), "

@@ -38,7 +38,14 @@ from pathlib import Path
 import numpy as np
 
 from knotmm.config import RunConfig
-from knotmm.engine.copies import MAX_TOGETHER, OneAfterAnother, copies_refusal, run_together
+from knotmm.engine.copies import (
+    MAX_TOGETHER,
+    OneAfterAnother,
+    copies_refusal,
+    replicas_at_once,
+    run_side_by_side,
+    run_together,
+)
 from knotmm.errors import ConfigError, RunDirectoryError, SimulationFault
 from knotmm.io.replica_set import (
     REPLICA_SET_FILE,
@@ -159,13 +166,40 @@ class ReplicaSetResult:
                 f"{speed}; wall time {self.wall_time:.1f} s, in {self.directory}/replica_*")
 
 
-def _set_record(cfg: RunConfig, seeds: list[int], refusal: str | None) -> dict:
+def _set_record(cfg: RunConfig, seeds: list[int], refusal: str | None,
+                at_once: tuple[int, str] = (1, "")) -> dict:
     stepping = ({"stepping": "together", "stepping_reason": _TOGETHER} if refusal is None
                 else {"stepping": "one after another", "stepping_reason": refusal})
     return {"replicas": {"count": len(seeds), "seeds": seeds,
                          "directories": [f"replica_{k}" for k in range(len(seeds))],
-                         **stepping},
+                         **stepping, "at_once": at_once[0], "at_once_reason": at_once[1]},
             "run_file": cfg.to_dict()}
+
+
+def _at_once(cfg: RunConfig, count: int, engine: str, platform: str) -> tuple[int, str]:
+    """:func:`knotmm.engine.copies.replicas_at_once` for ``count`` replicas of ``cfg``."""
+    return replicas_at_once(cfg["run.replicas_at_once"], count, engine, platform,
+                            cfg["run.threads"] * cfg["run.mobility_threads"])
+
+
+def _side_by_side(count: int, go, errors: dict[int, str], root: Path,
+                  at_once: int) -> list[RunResult | None]:
+    """Run replica k as ``go(k)``, ``at_once`` at a time, each in a thread
+    (:func:`knotmm.engine.copies.run_side_by_side`); failures as :func:`_together`'s."""
+    results: list[RunResult | None] = [None] * count
+
+    def body(k):
+        results[k] = _one(k, lambda: go(k), errors, root)
+
+    _raise_first(run_side_by_side(count, body, at_once))
+    return results
+
+
+def _raise_first(failures: dict[int, BaseException]) -> None:
+    """Raise the first failure of a set's runs, an interruption first."""
+    if failures:
+        stops = [e for e in failures.values() if isinstance(e, KeyboardInterrupt)]
+        raise stops[0] if stops else failures[min(failures)]
 
 
 _TOGETHER = ("the replicas are copies of one system in one OpenMM Context: one force "
@@ -173,20 +207,17 @@ _TOGETHER = ("the replicas are copies of one system in one OpenMM Context: one f
 
 
 def _together(count: int, go, errors: dict[int, str],
-              root: Path) -> list[RunResult | None]:
+              root: Path, at_once: int = 1) -> list[RunResult | None]:
     """Run the replicas side by side, stepped as copies of one Context
-    (:func:`knotmm.engine.copies.run_together`, in groups of at most :data:`MAX_TOGETHER`):
-    replica k runs ``go(k, (group, copy))``. The first failure (an interruption first) is
-    raised once every replica of its group has ended."""
+    (:func:`knotmm.engine.copies.run_together`, in groups of at most :data:`MAX_TOGETHER`,
+    ``at_once`` groups at the same time): replica k runs ``go(k, (group, copy))``. The first
+    failure (an interruption first) is raised once every replica of its group has ended."""
     results: list[RunResult | None] = [None] * count
 
     def body(k, copies):
         results[k] = _one(k, lambda: go(k, copies), errors, root)
 
-    failures = run_together(count, body, MAX_TOGETHER)
-    if failures:
-        stops = [e for e in failures.values() if isinstance(e, KeyboardInterrupt)]
-        raise stops[0] if stops else failures[min(failures)]
+    _raise_first(run_together(count, body, MAX_TOGETHER, at_once))
     return results
 
 
@@ -195,8 +226,11 @@ def _replica_config(cfg: RunConfig, seed: int, directory: Path) -> RunConfig:
                         "output.directory": str(directory)})
 
 
-def _check_replicas(cfg: RunConfig, root: Path, seeds: list[int]) -> str | None:
-    """Every check of the input that can refuse the set, before anything is written.
+def _check_replicas(cfg: RunConfig, root: Path,
+                    seeds: list[int]) -> tuple[str | None, tuple[int, str]]:
+    """Every check of the input that can refuse the set, before anything is written; why
+    the replicas are not stepped together (None if they are) and how many step at once
+    (:func:`_at_once`).
 
     Replica 0 is planned as :func:`knotmm.workflow.run` plans a run (the integrator against
     ``run.peclet``, the template and its geometry and overlap checks, the Simulation:
@@ -209,6 +243,7 @@ def _check_replicas(cfg: RunConfig, root: Path, seeds: list[int]) -> str | None:
     if root.exists() and not root.is_dir():
         raise RunDirectoryError(f"output directory {str(root)!r} is a file; choose another --out")
     first = resources = refusal = None
+    at_once = (1, "")
     for k, seed in enumerate(seeds):
         sub = _replica_config(cfg, seed, replica_directory(root, k))
         if k == 0:
@@ -218,11 +253,12 @@ def _check_replicas(cfg: RunConfig, root: Path, seeds: list[int]) -> str | None:
             refusal = copies_refusal(sim.engine, sim.platform_name, len(seeds),
                                      cfg["run.replica_stepping"], sim.n_beads,
                                      math.isfinite(cfg["run.peclet"]))
+            at_once = _at_once(cfg, len(seeds), sim.engine, sim.platform_name)
             continue
         positions = build_template(sub, identify="skip", resources=resources).positions
         if k == 1 and np.array_equal(positions, first):
             break  # the start does not depend on the seed: the others are replica 0's
-    return refusal
+    return refusal, at_once
 
 
 def _prepare_set(root: Path, count: int, overwrite: bool, record: dict) -> bytes | None:
@@ -348,35 +384,40 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
     wall0 = time.perf_counter()
     root = Path(directory if directory is not None else cfg["output.directory"])
     seeds = replica_seeds(cfg["run.seed"], count)
-    refusal = _check_replicas(cfg, root, seeds)
+    refusal, at_once = _check_replicas(cfg, root, seeds)
     lock = RunLock(root, "run")  # before anything in root is touched
     errors: dict[int, str] = {}
     results: list[RunResult | None] = []
     try:
         try:
-            previous = _prepare_set(root, count, overwrite, _set_record(cfg, seeds, refusal))
+            previous = _prepare_set(root, count, overwrite,
+                                    _set_record(cfg, seeds, refusal, at_once))
         except BaseException:
             if lock.created:
                 lock.release()
                 with contextlib.suppress(OSError):
                     root.rmdir()
             raise
-        if refusal is None:
-            def go(k, copies):
-                where = replica_directory(root, k)
-                return run(_replica_config(cfg, seeds[k], where), directory=where,
-                           overwrite=overwrite, progress=progress if k == 0 else False,
-                           wait_for_checks=wait_for_checks, copies=copies)
+        def go(k, copies):
+            where = replica_directory(root, k)
+            return run(_replica_config(cfg, seeds[k], where), directory=where,
+                       overwrite=overwrite, progress=progress if k == 0 else False,
+                       wait_for_checks=wait_for_checks, copies=copies)
 
-            log.info("%d replicas stepped together in %s", count, root)
+        if refusal is None or at_once[0] > 1:  # in threads: together, or side by side
+            log.info("%d replicas stepped %s in %s, %d at once", count,
+                     "together" if refusal is None else "one after another", root, at_once[0])
+            alone = OneAfterAnother(refusal)
             try:
-                results = _together(count, go, errors, root)
+                results = (_together(count, go, errors, root, at_once[0]) if refusal is None
+                           else _side_by_side(count, lambda k: go(k, alone), errors, root,
+                                              at_once[0]))
             except (ValueError, RunDirectoryError):
                 if not any((replica_directory(root, k) / RUN_FILE).exists()
                            for k in range(count)):
                     _undo_start(root, lock, previous)
                 raise
-        for k, seed in enumerate(seeds if refusal is not None else []):
+        for k, seed in enumerate(seeds if refusal is not None and at_once[0] == 1 else []):
             where = replica_directory(root, k)
             sub = _replica_config(cfg, seed, where)
             log.info("replica %d of %d (run.seed = %d) in %s", k + 1, count, seed, where)
@@ -438,33 +479,26 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     results: list[RunResult | None] = []
     together = record["replicas"].get("stepping") == "together" and len(seeds) > 1
     alone = OneAfterAnother(record["replicas"].get("stepping_reason", "one after another"))
+    ran = next((f for f in before if f and f.get("engine") and f.get("platform")), None)
+    at_once = (_at_once(cfg, sum(not _reached(f, target) for f in before), ran["engine"],
+                        ran["platform"]) if ran else (1, "no replica had run: one at a time"))
     try:
-        if together:
-            results = _together(len(seeds), lambda k, copies: _resume_one(
-                root, k, seeds[k], cfg, target, duration, progress if k == 0 else False,
-                wait_for_checks, copies), errors, root)
-        for k, seed in enumerate([] if together else seeds):
-            where = replica_directory(root, k)
-            facts = _facts(where)
-            if facts is None:  # never started, or nothing of it worth keeping
-                if (where / RUN_FILE).exists():
-                    log.info("replica %d stopped before its first checkpoint: it starts "
-                             "again from its start", k)
-                sub = _replica_config(cfg, seed, where)
-                results.append(_one(k, lambda sub=sub, where=where: run(
-                    sub, directory=where, overwrite=True, progress=progress,
-                    wait_for_checks=wait_for_checks, copies=alone), errors, root))
-                continue
-            if _reached(facts, target):
-                results.append(_finished(where, facts))
-                continue
-            results.append(_one(k, lambda where=where: resume(
-                where, progress=progress, duration=duration,
-                wait_for_checks=wait_for_checks, copies=alone), errors, root))
+        if together or at_once[0] > 1:  # in threads: together, or side by side
+            def go(k, copies):
+                return _resume_one(root, k, seeds[k], cfg, target, duration,
+                                   progress if k == 0 else False, wait_for_checks, copies)
+
+            results = (_together(len(seeds), go, errors, root, at_once[0]) if together
+                       else _side_by_side(len(seeds), lambda k: go(k, alone), errors, root,
+                                          at_once[0]))
+        for k, seed in enumerate([] if together or at_once[0] > 1 else seeds):
+            results.append(_one(k, lambda k=k, seed=seed: _resume_one(
+                root, k, seed, cfg, target, duration, progress, wait_for_checks, alone),
+                errors, root))
         if duration is not None:
             refusal = None if together else record["replicas"].get(
                 "stepping_reason", "one after another")
-            write_replica_set(root, _set_record(cfg, seeds, refusal))
+            write_replica_set(root, _set_record(cfg, seeds, refusal, at_once))
     finally:
         lock.release()
     return ReplicaSetResult(root, results, errors, time.perf_counter() - wall0,
@@ -473,11 +507,14 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
 
 def _resume_one(root: Path, k: int, seed: int, cfg: RunConfig, target: float,
                 duration: float | None, progress, wait_for_checks: bool, copies):
-    """Go on with replica ``k`` of a set stepped together (``resume_replicas``): from its
-    checkpoint, from its start, or (finished) its result as it stands."""
+    """Go on with replica ``k`` of a set (``resume_replicas``): from its checkpoint, from its
+    start, or (finished) its result as it stands."""
     where = replica_directory(root, k)
     facts = _facts(where)
-    if facts is None:
+    if facts is None:  # never started, or nothing of it worth keeping
+        if (where / RUN_FILE).exists():
+            log.info("replica %d stopped before its first checkpoint: it starts again from "
+                     "its start", k)
         return run(_replica_config(cfg, seed, where), directory=where, overwrite=True,
                    progress=progress, wait_for_checks=wait_for_checks, copies=copies)
     if _reached(facts, target):

@@ -10,6 +10,10 @@ threads and the calling thread on one core for the span of a stretch of steps, s
 hand-offs become switches on one core. Only where threads run changes: results are the same
 bit for bit. Linux only; elsewhere, or if the affinity calls fail, it does nothing; the
 environment variable ``KNOTMM_NO_PIN=1`` turns it off (to compare).
+
+Runs that step at the same time in threads of one process (a replica set's,
+``run.replicas_at_once``) each take a core of their own: a stretch that starts while another
+holds the core it is on moves to a core that no stretch holds, where there is one.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import os
+import threading
 
 __all__ = ["CorePin"]
 
@@ -24,6 +29,26 @@ try:
     _sched_getcpu = ctypes.CDLL(None, use_errno=True).sched_getcpu
 except (OSError, AttributeError):
     _sched_getcpu = None
+
+
+_held: dict[int, int] = {}  # core -> stretches pinned to it now
+_holding = threading.Lock()
+
+
+def _take_core(allowed: set[int]) -> int:
+    """The core this thread runs on, or, if a stretch holds it, one of ``allowed`` that none
+    holds; counted as held until :func:`_give_core`."""
+    with _holding:
+        core = _sched_getcpu()
+        if _held.get(core):
+            core = next((c for c in sorted(allowed) if not _held.get(c)), core)
+        _held[core] = _held.get(core, 0) + 1
+        return core
+
+
+def _give_core(core: int) -> None:
+    with _holding:
+        _held[core] -= 1
 
 
 def _supported() -> bool:
@@ -67,9 +92,15 @@ class CorePin:
             return
         try:
             saved = os.sched_getaffinity(0)
-            core = {_sched_getcpu()}
+        except OSError:
+            yield
+            return
+        taken = _take_core(saved)
+        try:
+            core = {taken}
             os.sched_setaffinity(0, core)
         except OSError:
+            _give_core(taken)
             yield
             return
         try:
@@ -81,3 +112,4 @@ class CorePin:
             yield
         finally:
             os.sched_setaffinity(0, saved)
+            _give_core(taken)

@@ -38,15 +38,23 @@ write the same trajectory file (its forces are summed in fixed point, in any ord
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 
 import numpy as np
 
-from knotmm.engine.interrupt import StopRequested, request_stop, stop_signal, take_stop_request
+from knotmm.engine.interrupt import (
+    StopRequested,
+    request_stop,
+    stop_requested,
+    stop_signal,
+    take_stop_request,
+)
 
 __all__ = ["COPY_PLATFORMS", "HOST_PLATFORMS", "MAX_TOGETHER", "TOGETHER_MAX_BEADS", "CopyGroup",
-           "copies_refusal", "enter_group", "leave_group", "run_together", "OneAfterAnother"]
+           "copies_refusal", "enter_group", "leave_group", "replicas_at_once", "run_side_by_side",
+           "run_together", "usable_cores", "OneAfterAnother"]
 
 log = logging.getLogger(__name__)
 
@@ -109,13 +117,90 @@ def copies_refusal(engine: str, platform: str, count: int, stepping: str = "auto
     return None
 
 
-def run_together(count: int, body, max_together: int | None = None) -> dict[int, BaseException]:
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity where the system tells it)."""
+    import os
+
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        return os.cpu_count() or 1
+
+
+def replicas_at_once(requested: int, count: int, engine: str, platform: str,
+                     threads: int) -> tuple[int, str]:
+    """How many of a set's ``count`` replicas (or groups of copies) step at the same time,
+    each in a thread, and why.
+
+    Parameters
+    ----------
+    requested : int
+        ``run.replicas_at_once``: 0 for the automatic choice.
+    count : int
+        Replicas to run.
+    engine, platform : str
+        The replicas' engine and OpenMM platform.
+    threads : int
+        Threads one replica uses (``run.threads`` x ``run.mobility_threads``).
+
+    Returns
+    -------
+    (int, str)
+        At least 1, at most ``count``; the reason, for ``replicas.toml``.
+    """
+    count = max(1, int(count))
+    if requested >= 1:
+        return min(int(requested), count), f"run.replicas_at_once = {int(requested)}"
+    if engine != "plugin":
+        return 1, "the Python engine holds Python's interpreter lock while it steps"
+    if platform not in HOST_PLATFORMS:
+        return 1, f"the {platform} device steps the whole set"
+    cores, threads = usable_cores(), max(1, int(threads))
+    at_once = max(1, min(count, cores // threads))
+    return at_once, (f"auto: {cores} CPU cores for this process, {threads} thread"
+                     f"{'s' if threads > 1 else ''} a replica")
+
+
+@contextlib.contextmanager
+def _blas_on_one_thread():
+    """BLAS on one thread for the whole set: each run limits it while it steps and puts the
+    former limit back when it ends, which, with runs ending at their own times, would let
+    the others factorise with more threads (and round otherwise) from then on. The limit
+    holds only for the libraries loaded now, and only this (the main) thread may change it
+    (threadpoolctl: the runs' own limits, in their threads, do nothing): LAPACK's library,
+    which a Brownian run loads with its integrator, is loaded first. Loaded later, it
+    factorised on every core in a resumed set (1.6x slower on idle cores, 4x beside other
+    work, and rounding otherwise than the uninterrupted set, whose process happened to
+    have loaded it before)."""
+    from threadpoolctl import threadpool_limits
+
+    import knotmm.plugin as kp
+
+    if kp._cython_lapack() is None:  # no plugin: scipy's package import loads the library
+        import scipy.linalg  # noqa: F401
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
+def _failed(k: int, exc: BaseException, failures: dict) -> None:
+    """Record run ``k``'s failure; an interruption of one run stops the others at their
+    next step (each run takes the request as it stops, so it is asked for again)."""
+    failures[k] = exc
+    if isinstance(exc, KeyboardInterrupt):
+        request_stop()
+
+
+def run_together(count: int, body, max_together: int | None = None,
+                 at_once: int = 1) -> dict[int, BaseException]:
     """Run ``body(k, (group, copy))`` for ``k`` in ``range(count)``, each in a thread of its
     own, the runs stepped as the copies of a :class:`CopyGroup`: groups of at most
-    ``max_together`` (default :data:`MAX_TOGETHER`) runs of sizes that differ by one at most,
-    one group after another. A run that ends, however it ends, leaves its group. A stop asked
-    for by a signal (or a :class:`StopRequested` of one run) stops every run of the group at a
-    whole step, and no later group starts.
+    ``max_together`` (default :data:`MAX_TOGETHER`) runs each, at least ``at_once`` groups
+    where each can have two runs, of sizes that differ by one at most, ``at_once`` groups
+    stepping at the same time (each by a thread of its
+    own: the plugin steps without Python's interpreter lock), then the next ones. A run that
+    ends, however it ends, leaves its group. A stop asked for by a signal (or a
+    :class:`StopRequested` of one run) stops every run at a whole step, and no later group
+    starts.
 
     Returns
     -------
@@ -123,48 +208,78 @@ def run_together(count: int, body, max_together: int | None = None) -> dict[int,
         ``{k: exception}`` for each run whose ``body`` raised (the others' return values are
         the caller's to keep); key -1: an interruption of the waiting thread, waited out.
     """
-    from threadpoolctl import threadpool_limits
-
     limit = int(max_together or MAX_TOGETHER)
+    at_once = max(1, min(int(at_once), count))
     failures: dict[int, BaseException] = {}
 
     def one(k, group, copy, ended):
         try:
             body(k, (group, copy))
         except BaseException as exc:  # noqa: BLE001 - handed back to the caller's thread
-            failures[k] = exc
-            if isinstance(exc, KeyboardInterrupt):
-                request_stop()  # the others stop at their next step too
+            _failed(k, exc, failures)
         finally:
             group.leave(copy)
             ended.release()
 
-    # BLAS on one thread for the whole set: each run limits it while it steps and puts the
-    # former limit back when it ends, which, with runs ending at their own times, would let
-    # the others factorise with more threads (and round otherwise) from then on. The limit
-    # holds only for the libraries loaded now, and only this (the main) thread may change it
-    # (threadpoolctl: the runs' own limits, in their threads, do nothing): LAPACK's library,
-    # which a Brownian run loads with its integrator, is loaded first. Loaded later, it
-    # factorised on every core in a resumed set (1.6x slower on idle cores, 4x beside other
-    # work, and rounding otherwise than the uninterrupted set, whose process happened to
-    # have loaded it before).
-    import scipy.linalg  # noqa: F401
-
-    with threadpool_limits(limits=1, user_api="blas"):
-        groups = -(-count // limit)
-        for g in range(groups):
-            first = count * g // groups
-            members = range(first, count * (g + 1) // groups)
-            group = CopyGroup(len(members))
+    with _blas_on_one_thread():
+        groups = max(-(-count // limit), min(at_once, count // 2))  # two copies a group at least
+        bounds = [count * g // groups for g in range(groups + 1)]
+        for first in range(0, groups, at_once):
             ended = threading.Semaphore(0)
-            threads = [threading.Thread(target=one, args=(k, group, k - first, ended),
-                                        daemon=True, name=f"knotmm-copy-{k}") for k in members]
+            threads = []
+            for g in range(first, min(first + at_once, groups)):
+                group = CopyGroup(bounds[g + 1] - bounds[g])
+                threads += [threading.Thread(target=one, args=(k, group, k - bounds[g], ended),
+                                             daemon=True, name=f"knotmm-copy-{k}")
+                            for k in range(bounds[g], bounds[g + 1])]
             for t in threads:
                 t.start()
             _wait(threads, ended, failures)
             take_stop_request()  # asked for by a run for the others; all have stopped
             if failures:
                 break
+    return failures
+
+
+def run_side_by_side(count: int, body, at_once: int) -> dict[int, BaseException]:
+    """Run ``body(k)`` for ``k`` in ``range(count)``, each a run of its own (its own
+    Context), at most ``at_once`` at the same time, each in a thread (the plugin steps
+    without Python's interpreter lock), in the order of ``k``. After a failure, or a stop
+    asked for by a signal (which stops the runs under way at a whole step), no further run
+    starts.
+
+    Returns
+    -------
+    dict
+        As :func:`run_together`'s.
+    """
+    failures: dict[int, BaseException] = {}
+    taking = threading.Lock()
+    order = iter(range(count))
+
+    def worker(ended):
+        try:
+            while True:
+                with taking:
+                    k = None if failures or stop_requested() else next(order, None)
+                if k is None:
+                    return
+                try:
+                    body(k)
+                except BaseException as exc:  # noqa: BLE001 - handed back to the caller
+                    _failed(k, exc, failures)
+        finally:
+            ended.release()
+
+    with _blas_on_one_thread():
+        ended = threading.Semaphore(0)
+        threads = [threading.Thread(target=worker, args=(ended,), daemon=True,
+                                    name=f"knotmm-replicas-{i}")
+                   for i in range(max(1, min(int(at_once), count)))]
+        for t in threads:
+            t.start()
+        _wait(threads, ended, failures)
+        take_stop_request()
     return failures
 
 

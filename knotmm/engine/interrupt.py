@@ -30,6 +30,7 @@ __all__ = [
     "raise_if_requested",
     "request_stop",
     "stop_between_steps",
+    "stop_requested",
     "stop_signal",
     "take_stop_request",
 ]
@@ -66,6 +67,11 @@ def stop_signal() -> str | None:
 def request_stop() -> None:
     """Ask the running simulation to stop at its next step boundary (for signal handlers)."""
     _requested.set()
+
+
+def stop_requested() -> bool:
+    """Whether a stop has been asked for and not yet taken (the request stays)."""
+    return _requested.is_set()
 
 
 def take_stop_request() -> bool:

@@ -328,13 +328,16 @@ def _cython_lapack():
     cython_lapack``, measured 2026-12-06: a Brownian run's start), and registered in
     ``sys.modules`` under its own name, which keeps it (and its LAPACK library) loaded and
     gives a later ``import scipy.linalg`` the same module. Where the file is not found or does
-    not load (another scipy layout), the package import is used. Called once, by
-    :func:`use_lapack_cholesky`.
+    not load (another scipy layout), the package import is used. Called by
+    :func:`use_lapack_cholesky` and, to limit the library's threads for a replica set, by
+    :mod:`knotmm.engine.copies`; once loaded, the module in ``sys.modules`` is returned.
     """
     import importlib.machinery  # noqa: PLC0415 - only stochastic runs need LAPACK
     import importlib.util  # noqa: PLC0415
 
     name = "scipy.linalg.cython_lapack"
+    if name in sys.modules:
+        return sys.modules[name]
     try:
         import scipy  # noqa: PLC0415 - the bare package: 0.03 s
     except ImportError:

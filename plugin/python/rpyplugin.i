@@ -198,9 +198,9 @@ static bool isNumpyAvailable() { return true; }
     }
 }
 
-// The steps run without Python's global interpreter lock, as OpenMM's own Integrator.step
-// does: runs in other threads of the process (a replica set's, knotmm.engine.copies) step at
-// the same time. The integrator calls no Python while it steps (LAPACK's routines are C
+// The steps (of one system, and of a replica set's copies) run without Python's global
+// interpreter lock, as OpenMM's own Integrator.step does: runs in other threads of the
+// process (a replica set's, knotmm.engine.copies) step at the same time. The integrator calls no Python while it steps (LAPACK's routines are C
 // function pointers taken beforehand).
 %define KNOTMM_STEP_WITHOUT_GIL(name)
 %exception KnotMM::RPYIntegrator::name {
@@ -222,6 +222,7 @@ static bool isNumpyAvailable() { return true; }
 KNOTMM_STEP_WITHOUT_GIL(step)
 KNOTMM_STEP_WITHOUT_GIL(stepTo)
 KNOTMM_STEP_WITHOUT_GIL(stepToWithin)
+KNOTMM_STEP_WITHOUT_GIL(stepCopiesTo)
 
 %feature("autodoc", "0");
 

@@ -180,7 +180,11 @@ def test_the_set_is_analysed_as_one_point(brownian_set):
     assert stats["std_error"] == pytest.approx(np.std(values, ddof=1) / np.sqrt(3), rel=1e-9)
 
 
-def test_a_breakdown_of_one_replica_is_recorded_and_the_others_go_on(tmp_path, monkeypatch):
+@pytest.mark.parametrize("stepping", [
+    {}, {"replica_stepping": "one_after_another", "replicas_at_once": 1},
+    {"replica_stepping": "one_after_another", "replicas_at_once": 2}])
+def test_a_breakdown_of_one_replica_is_recorded_and_the_others_go_on(tmp_path, monkeypatch,
+                                                                      stepping):
     real = replicas.run
 
     def flaky(cfg, directory, **kwargs):
@@ -189,7 +193,8 @@ def test_a_breakdown_of_one_replica_is_recorded_and_the_others_go_on(tmp_path, m
         return real(cfg, directory=directory, **kwargs)
 
     monkeypatch.setattr(replicas, "run", flaky)
-    cfg = RunConfig.from_dict({**BROWNIAN, "run": {**BROWNIAN["run"], "duration": 0.5}})
+    cfg = RunConfig.from_dict({**BROWNIAN, "run": {**BROWNIAN["run"], "duration": 0.5,
+                                                   **stepping}})
     result = run_replicas(cfg, directory=tmp_path / "s", progress=False)
     assert list(result.errors) == [1] and "a test fault" in result.errors[1]
     assert result.results[1] is None and result.results[0] and result.results[2]
