@@ -134,7 +134,8 @@ class ReplicaSetResult:
     wall_time : float
         Seconds for the whole set.
     stepping : str
-        ``"stepped together"`` or ``"one after another"`` (``replicas.toml``'s reason).
+        ``"stepped together"`` or ``"one after another"``, and how many at once where
+        several (``replicas.toml`` says why).
     """
 
     directory: Path
@@ -174,6 +175,13 @@ def _set_record(cfg: RunConfig, seeds: list[int], refusal: str | None,
                          "directories": [f"replica_{k}" for k in range(len(seeds))],
                          **stepping, "at_once": at_once[0], "at_once_reason": at_once[1]},
             "run_file": cfg.to_dict()}
+
+
+def _stepping(together: bool, at_once: int) -> str:
+    """How the set stepped, for its summary line."""
+    how = "stepped together" if together else "one after another"
+    return how + (f", {at_once} {'groups' if together else 'replicas'} at once"
+                  if at_once > 1 else "")
 
 
 def _at_once(cfg: RunConfig, count: int, engine: str, platform: str) -> tuple[int, str]:
@@ -250,10 +258,12 @@ def _check_replicas(cfg: RunConfig, root: Path,
             built = prepare(sub, identify="skip")
             first, resources = built.template.positions, built.plan.resources
             sim = built.simulation
+            at_once = _at_once(cfg, len(seeds), sim.engine, sim.platform_name)
             refusal = copies_refusal(sim.engine, sim.platform_name, len(seeds),
                                      cfg["run.replica_stepping"], sim.n_beads,
-                                     math.isfinite(cfg["run.peclet"]))
-            at_once = _at_once(cfg, len(seeds), sim.engine, sim.platform_name)
+                                     math.isfinite(cfg["run.peclet"]), at_once[0])
+            if refusal is None:  # groups of two copies at least
+                at_once = (max(1, min(at_once[0], len(seeds) // 2)), at_once[1])
             continue
         positions = build_template(sub, identify="skip", resources=resources).positions
         if k == 1 and np.array_equal(positions, first):
@@ -433,7 +443,7 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
     finally:
         lock.release()
     return ReplicaSetResult(root, results, errors, time.perf_counter() - wall0,
-                            "stepped together" if refusal is None else "one after another")
+                            _stepping(refusal is None, at_once[0]))
 
 
 def resume_replicas(directory, progress: bool | None = None, duration: float | None = None,
@@ -480,7 +490,8 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     together = record["replicas"].get("stepping") == "together" and len(seeds) > 1
     alone = OneAfterAnother(record["replicas"].get("stepping_reason", "one after another"))
     ran = next((f for f in before if f and f.get("engine") and f.get("platform")), None)
-    at_once = (_at_once(cfg, sum(not _reached(f, target) for f in before), ran["engine"],
+    pending = sum(not _reached(f, target) for f in before)
+    at_once = (_at_once(cfg, pending // 2 if together else pending, ran["engine"],
                         ran["platform"]) if ran else (1, "no replica had run: one at a time"))
     try:
         if together or at_once[0] > 1:  # in threads: together, or side by side
@@ -502,7 +513,7 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
     finally:
         lock.release()
     return ReplicaSetResult(root, results, errors, time.perf_counter() - wall0,
-                            "stepped together" if together else "one after another")
+                            _stepping(together, at_once[0]))
 
 
 def _resume_one(root: Path, k: int, seed: int, cfg: RunConfig, target: float,

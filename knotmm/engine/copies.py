@@ -52,7 +52,8 @@ from knotmm.engine.interrupt import (
     take_stop_request,
 )
 
-__all__ = ["COPY_PLATFORMS", "HOST_PLATFORMS", "MAX_TOGETHER", "TOGETHER_MAX_BEADS", "CopyGroup",
+__all__ = ["COPY_PLATFORMS", "HOST_PLATFORMS", "MAX_TOGETHER", "TOGETHER_MAX_BEADS",
+           "TOGETHER_MAX_BEADS_AT_ONCE", "CopyGroup",
            "copies_refusal", "enter_group", "leave_group", "replicas_at_once", "run_side_by_side",
            "run_together", "usable_cores", "OneAfterAnother"]
 
@@ -72,6 +73,11 @@ HOST_PLATFORMS = ("Reference", "CPU")
 #: at Pe = inf: 0.94x, 0.99x, 1.53x at N = 90, 120, 240). On a device platform the copies'
 #: launches replace as many force calls, and together is the default at every size.
 TOGETHER_MAX_BEADS = {"brownian": 79, "deterministic": 120}
+#: The same where several replicas (or groups of copies) step at once (``run.replicas_at_once``
+#: > 1): 8 replicas on 2 cores, Brownian together 0.79-0.83x, 0.85-1.12x, 1.07x, 1.3x the
+#: wall time of one after another at N = 40, 60, 90, 120; deterministic 1.16-1.2x, 1.1-1.17x,
+#: 1.32x, 1.35-1.6x (2026-12-06 night, ``benchmarks/README.md``).
+TOGETHER_MAX_BEADS_AT_ONCE = {"brownian": 79, "deterministic": 0}
 
 
 #: Most runs stepped together in one Context: a larger set runs in groups of at most this
@@ -81,7 +87,7 @@ MAX_TOGETHER = 64
 
 
 def copies_refusal(engine: str, platform: str, count: int, stepping: str = "auto",
-                   n_beads: int = 0, brownian: bool = False) -> str | None:
+                   n_beads: int = 0, brownian: bool = False, at_once: int = 1) -> str | None:
     """Why ``count`` replicas are not stepped as copies of one Context, or None if they are.
 
     Parameters
@@ -97,6 +103,8 @@ def copies_refusal(engine: str, platform: str, count: int, stepping: str = "auto
         Beads of one replica.
     brownian : bool
         Finite ``run.peclet``.
+    at_once : int
+        Replicas (or groups) stepping at the same time (:func:`replicas_at_once`).
     """
     if count < 2:
         return "a single run"
@@ -109,10 +117,12 @@ def copies_refusal(engine: str, platform: str, count: int, stepping: str = "auto
         return (f"the plugin holds copies on the {' and '.join(COPY_PLATFORMS)} platforms, "
                 f"not on {platform}")
     kind = "brownian" if brownian else "deterministic"
+    largest = (TOGETHER_MAX_BEADS if at_once < 2 else TOGETHER_MAX_BEADS_AT_ONCE)[kind]
     # on a device platform (OpenCL, CUDA) together is the faster way at every size measured
-    if stepping == "auto" and platform in HOST_PLATFORMS and n_beads > TOGETHER_MAX_BEADS[kind]:
-        return (f"measured faster one after another for {kind} replicas of more than "
-                f"{TOGETHER_MAX_BEADS[kind]} beads (benchmarks/README.md, replicas); "
+    if stepping == "auto" and platform in HOST_PLATFORMS and n_beads > largest:
+        several = f", {at_once} at once," if at_once > 1 else ""
+        return (f"measured faster one after another{several} for {kind} replicas of more "
+                f"than {largest} beads (benchmarks/README.md, replicas); "
                 f'run.replica_stepping = "together" steps them together')
     return None
 

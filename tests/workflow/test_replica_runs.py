@@ -337,10 +337,13 @@ def test_bad_replica_counts_and_occupied_directories_are_one_line(tmp_path, caps
 def test_the_command_line_runs_and_resumes_a_set(tmp_path, capsys):
     out = tmp_path / "cli"
     argv = ["run", "--out", str(out), "--beads", "30", "--duration", "0.5", "--no-progress",
-            "--set", "run.replicas=2", "--set", "run.topology_check_interval=0"]
+            "--set", "run.replicas=2", "--set", "run.topology_check_interval=0",
+            "--set", "run.replicas_at_once=2"]
     assert main(argv) == 0
     line = capsys.readouterr().out.strip().splitlines()[-1]
-    assert line.startswith("2 replicas (stepped together): 2 simulated 0.5 tau_d")
+    # deterministic, two at once: one after another, side by side (measured faster)
+    assert line.startswith("2 replicas (one after another, 2 replicas at once): 2 simulated "
+                           "0.5 tau_d"), line
     assert main(["run", "--resume", str(out)]) == 2
     assert "every replica already finished" in capsys.readouterr().err
     # a shorter --duration: the line says where the replicas are, not what was asked

@@ -171,13 +171,15 @@ def _full_disk_for(monkeypatch, name: str, times: int = 1) -> None:
     monkeypatch.setattr(knotmm.workflow, "write_vmd_script", full)
 
 
+@pytest.mark.parametrize("stepping", ["together", "one_after_another"])
 def test_a_replica_that_cannot_start_is_an_output_fault_and_resume_runs_it(
-        tmp_path, monkeypatch, capsys):
+        tmp_path, monkeypatch, capsys, stepping):
     _full_disk_for(monkeypatch, "replica_1")
     root = tmp_path / "set"
     argv = ["run", "--out", str(root), "--beads", "30", "--duration", "0.3", "--no-progress",
             "--set", "run.replicas=3", "--set", "run.topology_check_interval=0",
-            "--set", "output.frame_interval=0.05", "--set", "output.checkpoint_interval=0.1"]
+            "--set", "output.frame_interval=0.05", "--set", "output.checkpoint_interval=0.1",
+            "--set", f"run.replica_stepping={stepping}", "--set", "run.replicas_at_once=2"]
     assert main(argv) == 3  # an output fault, not bad input
     note, line = capsys.readouterr().err.strip().splitlines()  # Pe = inf: identical replicas
     assert note.startswith("knotmm: note: run.replicas = 3") and "identical" in note, note
@@ -185,8 +187,10 @@ def test_a_replica_that_cannot_start_is_an_output_fault_and_resume_runs_it(
     assert "no space left" in line and f"--resume {root}" in line, line
     assert read_facts(root / "replica_0")["status"] == "finished"
     assert not (root / "replica_1").exists()  # its start left nothing
-    # the replicas start side by side (stepped together): replica 2 ran beside replica 0
-    assert read_facts(root / "replica_2")["status"] == "finished"
+    if stepping == "together":  # one group of three: replica 2 ran beside replica 0
+        assert read_facts(root / "replica_2")["status"] == "finished"
+    else:  # two at a time: after replica 1's fault no further replica started
+        assert not (root / "replica_2" / "run.toml").exists()
     assert main(["run", "--resume", str(root), "--no-progress"]) == 0
     for k in range(3):
         assert read_facts(root / f"replica_{k}")["status"] == "finished"
