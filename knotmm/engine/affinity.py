@@ -33,6 +33,7 @@ except (OSError, AttributeError):
 
 _held: dict[int, int] = {}  # core -> stretches pinned to it now
 _holding = threading.Lock()
+_creating = threading.Lock()  # one Context created at a time: its new threads are its own
 
 
 def _take_core(allowed: set[int]) -> int:
@@ -77,10 +78,17 @@ class CorePin:
 
     @contextlib.contextmanager
     def creating(self):
-        """Around ``openmm.Context(...)``: remember the threads it starts (OpenMM's pool)."""
-        before = _thread_ids() if self.enabled else set()
-        yield
-        if self.enabled:
+        """Around ``openmm.Context(...)``: remember the threads it starts (OpenMM's pool).
+
+        One Context at a time in the process is created inside this block, so that threads
+        that start meanwhile are this Context's and not another's being created beside it
+        (replicas that start at the same time in threads of one process)."""
+        if not self.enabled:
+            yield
+            return
+        with _creating:
+            before = _thread_ids()
+            yield
             self.pool = _thread_ids() - before
 
     @contextlib.contextmanager

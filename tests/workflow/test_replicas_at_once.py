@@ -152,3 +152,35 @@ def test_stretches_stepping_at_the_same_time_take_different_cores():
     finally:
         affinity._give_core(first)
     assert not any(affinity._held.values())
+
+
+def test_contexts_created_at_the_same_time_each_pin_only_their_own_pool():
+    """Two replicas starting together in threads: each CorePin remembers the pool threads of
+    its own Context, never the other's (or each stretch would pull the other's pool)."""
+    import openmm
+
+    from knotmm.model.system import ChainModel, chain_system
+    from knotmm.shapes.geometry import torus_knot
+
+    if not affinity._supported():
+        pytest.skip("no thread affinity here")
+    system = chain_system(torus_knot(2, 3, 30), ChainModel())
+    platform = openmm.Platform.getPlatformByName("CPU")
+    start = threading.Barrier(2)
+    pins, contexts = [], []
+
+    def create():
+        pin = affinity.CorePin(True)
+        start.wait(10)
+        with pin.creating():
+            contexts.append(openmm.Context(system, openmm.VerletIntegrator(0.001), platform,
+                                           {"Threads": "1"}))
+        pins.append(pin)
+
+    threads = [threading.Thread(target=create) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(pins) == 2 and pins[0].pool and pins[1].pool
+    assert not pins[0].pool & pins[1].pool
