@@ -12,10 +12,13 @@ platform that holds copies, systems small enough) the replicas run side by side,
 thread, and their steps are taken together by a :class:`knotmm.engine.copies.CopyGroup`: K
 copies of the system in one Context, one force evaluation for all, each copy its own steps;
 replica k then equals the single run to rounding. Elsewhere they run one after another.
-Either way the process pays the start-up of Python, OpenMM, the plugin and numba once
-instead of K times (``benchmarks/bench_workflow.py replicas`` measures it against K single
-runs); the choice and its reason are in ``replicas.toml`` (``stepping``,
-``stepping_reason``) and in each replica's run.toml (``replica_stepping``).
+On the host platforms ``run.replicas_at_once`` of them (auto: one per free core) step at the
+same time, each in a thread: replicas one after another side by side, or groups of copies
+(:func:`knotmm.engine.copies.replicas_at_once`). Either way the process pays the start-up
+of Python, OpenMM, the plugin and numba once instead of K times
+(``benchmarks/bench_workflow.py replicas`` measures it against K single runs); the choice
+and its reason are in ``replicas.toml`` (``stepping``, ``stepping_reason``, ``at_once``,
+``at_once_reason``) and in each replica's run.toml (``replica_stepping``).
 
 A replica whose dynamics breaks down (:class:`knotmm.errors.SimulationFault`) is recorded
 as a fault in its run.toml and the others go on; a file that cannot be written (a full disk)
@@ -216,7 +219,7 @@ _TOGETHER = ("the replicas are copies of one system in one OpenMM Context: one f
 
 def _together(count: int, go, errors: dict[int, str],
               root: Path, at_once: int = 1) -> list[RunResult | None]:
-    """Run the replicas side by side, stepped as copies of one Context
+    """Run the replicas, each in a thread, stepped as copies of one Context
     (:func:`knotmm.engine.copies.run_together`, in groups of at most :data:`MAX_TOGETHER`,
     ``at_once`` groups at the same time): replica k runs ``go(k, (group, copy))``. The first
     failure (an interruption first) is raised once every replica of its group has ended."""
