@@ -206,11 +206,10 @@ def run_together(count: int, body, max_together: int | None = None,
     own, the runs stepped as the copies of a :class:`CopyGroup`: groups of at most
     ``max_together`` (default :data:`MAX_TOGETHER`) runs each, at least ``at_once`` groups
     where each can have two runs, of sizes that differ by one at most, ``at_once`` groups
-    stepping at the same time (each by a thread of its
-    own: the plugin steps without Python's interpreter lock), then the next ones. A run that
-    ends, however it ends, leaves its group. A stop asked for by a signal (or a
-    :class:`StopRequested` of one run) stops every run at a whole step, and no later group
-    starts.
+    stepping at the same time (each by a thread of its own: the plugin steps without
+    Python's interpreter lock), then the next ones. A run that ends, however it ends, leaves
+    its group. A stop asked for by a signal (or a :class:`StopRequested` of one run) stops
+    every run at a whole step, and no later group starts.
 
     Returns
     -------
