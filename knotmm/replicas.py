@@ -195,12 +195,13 @@ def _at_once(cfg: RunConfig, count: int, engine: str, platform: str) -> tuple[in
 
 def _side_by_side(count: int, go, errors: dict[int, str], root: Path,
                   at_once: int) -> list[RunResult | None]:
-    """Run replica k as ``go(k)``, ``at_once`` at a time, each in a thread
-    (:func:`knotmm.engine.copies.run_side_by_side`); failures as :func:`_together`'s."""
+    """Run replica k as ``go(k, lane)``, ``at_once`` at a time, each in a thread
+    (:func:`knotmm.engine.copies.run_side_by_side`: lane 0's replicas show the progress);
+    failures as :func:`_together`'s."""
     results: list[RunResult | None] = [None] * count
 
-    def body(k):
-        results[k] = _one(k, lambda: go(k), errors, root)
+    def body(k, lane):
+        results[k] = _one(k, lambda: go(k, lane), errors, root)
 
     _raise_first(run_side_by_side(count, body, at_once))
     return results
@@ -411,10 +412,10 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
                 with contextlib.suppress(OSError):
                     root.rmdir()
             raise
-        def go(k, copies):
+        def go(k, copies, shows_progress):
             where = replica_directory(root, k)
             return run(_replica_config(cfg, seeds[k], where), directory=where,
-                       overwrite=overwrite, progress=progress if k == 0 else False,
+                       overwrite=overwrite, progress=progress if shows_progress else False,
                        wait_for_checks=wait_for_checks, copies=copies)
 
         if refusal is None or at_once[0] > 1:  # in threads: together, or side by side
@@ -422,9 +423,10 @@ def run_replicas(cfg: RunConfig, directory=None, overwrite: bool = False,
                      "together" if refusal is None else "one after another", root, at_once[0])
             alone = OneAfterAnother(refusal)
             try:
-                results = (_together(count, go, errors, root, at_once[0]) if refusal is None
-                           else _side_by_side(count, lambda k: go(k, alone), errors, root,
-                                              at_once[0]))
+                results = (_together(count, lambda k, copies: go(k, copies, k == 0), errors,
+                                     root, at_once[0]) if refusal is None
+                           else _side_by_side(count, lambda k, lane: go(k, alone, lane == 0),
+                                              errors, root, at_once[0]))
             except (ValueError, RunDirectoryError):
                 if not any((replica_directory(root, k) / RUN_FILE).exists()
                            for k in range(count)):
@@ -498,13 +500,15 @@ def resume_replicas(directory, progress: bool | None = None, duration: float | N
                         ran["platform"]) if ran else (1, "no replica had run: one at a time"))
     try:
         if together or at_once[0] > 1:  # in threads: together, or side by side
-            def go(k, copies):
+            def go(k, copies, shows_progress):
                 return _resume_one(root, k, seeds[k], cfg, target, duration,
-                                   progress if k == 0 else False, wait_for_checks, copies)
+                                   progress if shows_progress else False, wait_for_checks,
+                                   copies)
 
-            results = (_together(len(seeds), go, errors, root, at_once[0]) if together
-                       else _side_by_side(len(seeds), lambda k: go(k, alone), errors, root,
-                                          at_once[0]))
+            results = (_together(len(seeds), lambda k, copies: go(k, copies, k == 0), errors,
+                                 root, at_once[0]) if together
+                       else _side_by_side(len(seeds), lambda k, lane: go(k, alone, lane == 0),
+                                          errors, root, at_once[0]))
         for k, seed in enumerate([] if together or at_once[0] > 1 else seeds):
             results.append(_one(k, lambda k=k, seed=seed: _resume_one(
                 root, k, seed, cfg, target, duration, progress, wait_for_checks, alone),

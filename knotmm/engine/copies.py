@@ -251,11 +251,12 @@ def run_together(count: int, body, max_together: int | None = None,
 
 
 def run_side_by_side(count: int, body, at_once: int) -> dict[int, BaseException]:
-    """Run ``body(k)`` for ``k`` in ``range(count)``, each a run of its own (its own
+    """Run ``body(k, lane)`` for ``k`` in ``range(count)``, each a run of its own (its own
     Context), at most ``at_once`` at the same time, each in a thread (the plugin steps
-    without Python's interpreter lock), in the order of ``k``. After a failure, or a stop
-    asked for by a signal (which stops the runs under way at a whole step), no further run
-    starts.
+    without Python's interpreter lock), in the order of ``k``; ``lane`` (0 ... ``at_once`` -
+    1) is the thread's, whose runs follow one another (lane 0's may show progress). After a
+    failure, or a stop asked for by a signal (which stops the runs under way at a whole
+    step), no further run starts.
 
     Returns
     -------
@@ -266,7 +267,7 @@ def run_side_by_side(count: int, body, at_once: int) -> dict[int, BaseException]
     taking = threading.Lock()
     order = iter(range(count))
 
-    def worker(ended):
+    def worker(lane, ended):
         try:
             while True:
                 with taking:
@@ -274,7 +275,7 @@ def run_side_by_side(count: int, body, at_once: int) -> dict[int, BaseException]
                 if k is None:
                     return
                 try:
-                    body(k)
+                    body(k, lane)
                 except BaseException as exc:  # noqa: BLE001 - handed back to the caller
                     _failed(k, exc, failures)
         finally:
@@ -282,7 +283,7 @@ def run_side_by_side(count: int, body, at_once: int) -> dict[int, BaseException]
 
     with _blas_on_one_thread():
         ended = threading.Semaphore(0)
-        threads = [threading.Thread(target=worker, args=(ended,), daemon=True,
+        threads = [threading.Thread(target=worker, args=(i, ended), daemon=True,
                                     name=f"knotmm-replicas-{i}")
                    for i in range(max(1, min(int(at_once), count)))]
         for t in threads:

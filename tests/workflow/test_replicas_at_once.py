@@ -184,3 +184,19 @@ def test_contexts_created_at_the_same_time_each_pin_only_their_own_pool():
         t.join()
     assert len(pins) == 2 and pins[0].pool and pins[1].pool
     assert not pins[0].pool & pins[1].pool
+
+
+def test_the_replicas_of_one_lane_show_the_progress_one_after_another(tmp_path, monkeypatch):
+    """Side by side, the replicas that the first thread runs show their progress in turn
+    (never two bars at once), and the others none; replica 0 is one of them."""
+    real, seen = replicas.run, []
+
+    def recording(cfg, directory, **kwargs):
+        seen.append((directory.name, kwargs["progress"], threading.current_thread().name))
+        return real(cfg, directory=directory, **{**kwargs, "progress": False})
+
+    monkeypatch.setattr(replicas, "run", recording)
+    run_replicas(_cfg(replicas=4), directory=tmp_path / "set", progress=True)
+    shown = {name for name, progress, _ in seen if progress}
+    first_lane = {name for name, _, thread in seen if thread == "knotmm-replicas-0"}
+    assert len(seen) == 4 and "replica_0" in shown and shown == first_lane
