@@ -23,7 +23,7 @@ import ctypes
 import os
 import threading
 
-__all__ = ["CorePin"]
+__all__ = ["CorePin", "usable_cores"]
 
 try:
     _sched_getcpu = ctypes.CDLL(None, use_errno=True).sched_getcpu
@@ -50,6 +50,14 @@ def _take_core(allowed: set[int]) -> int:
 def _give_core(core: int) -> None:
     with _holding:
         _held[core] -= 1
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity where the system tells it)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        return os.cpu_count() or 1
 
 
 def _supported() -> bool:

@@ -44,6 +44,7 @@ import threading
 
 import numpy as np
 
+from knotmm.engine.affinity import usable_cores
 from knotmm.engine.interrupt import (
     StopRequested,
     request_stop,
@@ -55,7 +56,7 @@ from knotmm.engine.interrupt import (
 __all__ = ["COPY_PLATFORMS", "HOST_PLATFORMS", "MAX_TOGETHER", "TOGETHER_MAX_BEADS",
            "TOGETHER_MAX_BEADS_AT_ONCE", "CopyGroup",
            "copies_refusal", "enter_group", "leave_group", "replicas_at_once", "run_side_by_side",
-           "run_together", "usable_cores", "OneAfterAnother"]
+           "run_together", "OneAfterAnother"]
 
 log = logging.getLogger(__name__)
 
@@ -125,16 +126,6 @@ def copies_refusal(engine: str, platform: str, count: int, stepping: str = "auto
                 f"than {largest} beads (benchmarks/README.md, replicas); "
                 f'run.replica_stepping = "together" steps them together')
     return None
-
-
-def usable_cores() -> int:
-    """CPU cores this process may run on (its affinity where the system tells it)."""
-    import os
-
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # not on Linux
-        return os.cpu_count() or 1
 
 
 def replicas_at_once(requested: int, count: int, engine: str, platform: str,

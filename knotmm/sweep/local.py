@@ -224,8 +224,6 @@ def _watch_parent(parent: int) -> None:  # pragma: no cover - runs in the worker
 
 def default_workers(threads: int) -> int:
     """Worker processes that fill this machine's cores with ``threads`` threads each."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, cores // max(1, int(threads)))
+    from knotmm.engine.affinity import usable_cores
+
+    return max(1, usable_cores() // max(1, int(threads)))
