@@ -225,6 +225,39 @@ void CopyBatch::waitForFactor(int copy, const StateVector& y) {
     wait(*copies[copy], State::WaitingForFactor, y, nullptr);
 }
 
+RPYBackend::TryCheck CopyBatch::waitForCheck(int copy, const StateVector* err, const StateVector& y1) {
+    Copy& c = *copies[copy];
+    c.request2 = err;
+    wait(c, State::WaitingForCheck, y1, nullptr);
+    c.request2 = nullptr;
+    return c.check;
+}
+
+void CopyBatch::waitForSettle(int copy) {
+    Copy& c = *copies[copy];
+    c.request = nullptr;
+    c.reply = nullptr;
+    c.state = State::WaitingToSettle;
+    swapcontext(&c.fiber, &scheduler);
+    if (c.jobError)
+        std::rethrow_exception(std::exchange(c.jobError, nullptr));
+}
+
+void CopyBatch::settle() {
+    for (auto& copy : copies) {
+        Copy& c = *copy;
+        if (c.state != State::WaitingForCheck)
+            continue;
+        try {
+            c.check = c.request2 != nullptr ? c.backend->checkTry(*c.request2, *c.request)
+                                            : RPYBackend::TryCheck{0.0, c.backend->firstNonFinite(*c.request)};
+        }
+        catch (...) {
+            c.jobError = std::current_exception();
+        }
+    }
+}
+
 bool CopyBatch::stepTo(ContextImpl& contextRef, RPYIntegrator& integrator, const vector<double>& targets,
                        double maxSeconds) {
     context = &contextRef;
@@ -263,21 +296,23 @@ bool CopyBatch::stepTo(ContextImpl& contextRef, RPYIntegrator& integrator, const
             swapcontext(&scheduler, &c.fiber);  // back when it waits or is done
             running = nullptr;
         }
-        bool velocities = false, factors = false;
+        bool velocities = false, waiting = false;
         for (auto& copy : copies) {
             velocities = velocities || copy->state == State::WaitingForVelocity;
-            factors = factors || copy->state == State::WaitingForFactor;
+            waiting = waiting || (copy->state != State::Done && copy->state != State::Idle);
         }
-        if (!velocities && !factors)
+        if (!waiting)
             break;
         forceError.clear();
+        settle();
         if (velocities)
             evaluate(contextRef);
         runJobs();
         for (auto& copy : copies)
-            if (copy->state == State::WaitingForVelocity || copy->state == State::WaitingForFactor)
+            if (copy->state != State::Done && copy->state != State::Idle)
                 copy->state = State::Runnable;
     }
+    settle();  // what the copies deferred last
     bool reached = true;
     for (auto& copy : copies)
         if (copy->faultKind.empty() && copy->time < copy->target - landingSlack(copy->target))

@@ -19,11 +19,21 @@
 
 namespace KnotMM {
 
-/** A vector of the device backend: 3n doubles in the device's memory. */
+struct CopyArena;
+
+/**
+ * A vector of the device backend: 3n doubles in the device's memory, its own array `a`, or (a
+ * copy of a batch, CommonRPYBatch) a slot of the batch's arena, given back when it goes.
+ */
 class CommonVector : public StateVector {
 public:
+    ~CommonVector();
     OpenMM::ComputeArray a;
+    std::shared_ptr<CopyArena> arena;  // null: the numbers are in `a`
+    int copy = -1, slot = -1;
+    int offset = 0;                    // where its numbers start in the arena
 };
+inline int arenaOffset(const StateVector& v) { return static_cast<const CommonVector&>(v).offset; }
 
 /** The device array of a vector (kernels take arrays by non-const reference; inputs are never written). */
 inline OpenMM::ComputeArray& data(StateVector& v) { return static_cast<CommonVector&>(v).a; }

@@ -140,63 +140,69 @@ KERNEL void readForces(GLOBAL const mm_long* RESTRICT force, GLOBAL const int* R
  *   r >= d: a = 3d/(8r) (1 + d^2/(6r^2)),  b = 3d/(8r) (1 - d^2/(2r^2)) / r^2,
  *   r <  d: a = 1 - 9r/(16d),              b = 3/(16 d r),
  *   r = 0 (the bead itself): a = 1, b = 0.
- * One work item per bead i sums over all j; the beads j come through local memory in tiles of
- * TILE (the work-group size).
+ * The rows base .. base + TILE - 1, one work item per bead i summing over all j; the beads j
+ * come through local memory (`tile`, 6 TILE doubles) in tiles of TILE (the work-group size).
+ * Every work item of the group runs the same loops (a bead past the end computes bead
+ * NUM_BEADS-1 again and writes nothing): no divergence around the barriers. The sum of a row
+ * does not depend on which group computes it (mobilityTimes and mobilityCopies agree).
  */
+DEVICE void mobilityRows(GLOBAL const double* RESTRICT x, GLOBAL const double* RESTRICT f, GLOBAL double* v,
+        int base, double d, double mu0, LOCAL_ARG double* tile) {
+    const double invD = 1.0/d;
+    const int i = base+LOCAL_ID;
+    const int row = (i < NUM_BEADS ? i : NUM_BEADS-1);
+    const double xi = x[3*row], yi = x[3*row+1], zi = x[3*row+2];
+    double ax = 0, ay = 0, az = 0;
+    for (int start = 0; start < NUM_BEADS; start += TILE) {
+        SYNC_THREADS;
+        const int j = start+LOCAL_ID;
+        if (j < NUM_BEADS) {
+            tile[6*LOCAL_ID] = x[3*j];
+            tile[6*LOCAL_ID+1] = x[3*j+1];
+            tile[6*LOCAL_ID+2] = x[3*j+2];
+            tile[6*LOCAL_ID+3] = f[3*j];
+            tile[6*LOCAL_ID+4] = f[3*j+1];
+            tile[6*LOCAL_ID+5] = f[3*j+2];
+        }
+        SYNC_THREADS;
+        const int count = (NUM_BEADS-start < TILE ? NUM_BEADS-start : TILE);
+        for (int k = 0; k < count; k++) {
+            const double r0 = tile[6*k]-xi, r1 = tile[6*k+1]-yi, r2 = tile[6*k+2]-zi;
+            const double fx = tile[6*k+3], fy = tile[6*k+4], fz = tile[6*k+5];
+            const double rr = r0*r0+r1*r1+r2*r2;
+            double a = 1, b = 0;
+            if (rr > 0) {
+                const double inv = 1.0/sqrt(rr);
+                const double r = rr*inv;
+                if (r >= d) {
+                    const double s = d*inv, s2 = s*s;
+                    a = 0.375*s*(1.0+s2/6.0);
+                    b = 0.375*s*(1.0-0.5*s2)*(inv*inv);
+                }
+                else {
+                    a = 1.0-0.5625*r*invD;
+                    b = 0.1875*inv*invD;
+                }
+            }
+            const double rf = b*(r0*fx+r1*fy+r2*fz);
+            ax += a*fx+rf*r0;
+            ay += a*fy+rf*r1;
+            az += a*fz+rf*r2;
+        }
+    }
+    if (i < NUM_BEADS) {
+        v[3*i] = mu0*ax;
+        v[3*i+1] = mu0*ay;
+        v[3*i+2] = mu0*az;
+    }
+}
+
+/** v = mu(x) f (mobilityRows), the groups taking the tiles of rows in turn. */
 KERNEL void mobilityTimes(GLOBAL const double* RESTRICT x, GLOBAL const double* RESTRICT f, GLOBAL double* RESTRICT v,
         double d, double mu0) {
     LOCAL double tile[6*TILE];
-    const double invD = 1.0/d;
-    for (int base = GROUP_ID*TILE; base < NUM_BEADS; base += NUM_GROUPS*TILE) {
-        // every work item of the group runs the same loops (a bead past the end computes bead
-        // NUM_BEADS-1 again and writes nothing): no divergence around the barriers
-        const int i = base+LOCAL_ID;
-        const int row = (i < NUM_BEADS ? i : NUM_BEADS-1);
-        const double xi = x[3*row], yi = x[3*row+1], zi = x[3*row+2];
-        double ax = 0, ay = 0, az = 0;
-        for (int start = 0; start < NUM_BEADS; start += TILE) {
-            SYNC_THREADS;
-            const int j = start+LOCAL_ID;
-            if (j < NUM_BEADS) {
-                tile[6*LOCAL_ID] = x[3*j];
-                tile[6*LOCAL_ID+1] = x[3*j+1];
-                tile[6*LOCAL_ID+2] = x[3*j+2];
-                tile[6*LOCAL_ID+3] = f[3*j];
-                tile[6*LOCAL_ID+4] = f[3*j+1];
-                tile[6*LOCAL_ID+5] = f[3*j+2];
-            }
-            SYNC_THREADS;
-            const int count = (NUM_BEADS-start < TILE ? NUM_BEADS-start : TILE);
-            for (int k = 0; k < count; k++) {
-                const double r0 = tile[6*k]-xi, r1 = tile[6*k+1]-yi, r2 = tile[6*k+2]-zi;
-                const double fx = tile[6*k+3], fy = tile[6*k+4], fz = tile[6*k+5];
-                const double rr = r0*r0+r1*r1+r2*r2;
-                double a = 1, b = 0;
-                if (rr > 0) {
-                    const double inv = 1.0/sqrt(rr);
-                    const double r = rr*inv;
-                    if (r >= d) {
-                        const double s = d*inv, s2 = s*s;
-                        a = 0.375*s*(1.0+s2/6.0);
-                        b = 0.375*s*(1.0-0.5*s2)*(inv*inv);
-                    }
-                    else {
-                        a = 1.0-0.5625*r*invD;
-                        b = 0.1875*inv*invD;
-                    }
-                }
-                const double rf = b*(r0*fx+r1*fy+r2*fz);
-                ax += a*fx+rf*r0;
-                ay += a*fy+rf*r1;
-                az += a*fz+rf*r2;
-            }
-        }
-        if (i < NUM_BEADS) {
-            v[3*i] = mu0*ax;
-            v[3*i+1] = mu0*ay;
-            v[3*i+2] = mu0*az;
-        }
-    }
+    for (int base = GROUP_ID*TILE; base < NUM_BEADS; base += NUM_GROUPS*TILE)
+        mobilityRows(x, f, v, base, d, mu0, tile);
 }
 
 /** result[0] = sum of v_i^2 (one work group of REDUCE_SIZE). */
@@ -300,23 +306,22 @@ KERNEL void countDifferent(GLOBAL const double* RESTRICT a, GLOBAL const double*
 }
 
 /**
- * What the end of a try needs, in one download (one work group of REDUCE_SIZE):
- * result[0] = max over beads of |err_b|^2, result[1] = the number of beads for which it is
- * not finite (maxBeadSquare), result[2] = the smallest index i with y1_i not finite, or
- * 3 NUM_BEADS (firstNonFinite).
+ * The reductions of checkTry, in one work group of REDUCE_SIZE (every work item reads them):
+ * worst[0] = max over beads of |err_b|^2, bad[0] = the number of beads for which it is not
+ * finite (none when err is null), first[0] = the smallest index i with y1_i not finite, or
+ * 3 NUM_BEADS.
  */
-KERNEL void checkTry(GLOBAL const double* RESTRICT err, GLOBAL const double* RESTRICT y1, GLOBAL double* RESTRICT result) {
-    LOCAL double worst[REDUCE_SIZE];
-    LOCAL double bad[REDUCE_SIZE];
-    LOCAL int first[REDUCE_SIZE];
+DEVICE void checkTryParts(GLOBAL const double* RESTRICT err, GLOBAL const double* RESTRICT y1,
+        LOCAL_ARG double* worst, LOCAL_ARG double* bad, LOCAL_ARG int* first) {
     double w = 0, nb = 0;
-    for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
-        const double s = err[3*b]*err[3*b]+err[3*b+1]*err[3*b+1]+err[3*b+2]*err[3*b+2];
-        if (notFinite(s))
-            nb += 1;
-        else
-            w = (s > w ? s : w);
-    }
+    if (err != 0)
+        for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
+            const double s = err[3*b]*err[3*b]+err[3*b+1]*err[3*b+1]+err[3*b+2]*err[3*b+2];
+            if (notFinite(s))
+                nb += 1;
+            else
+                w = (s > w ? s : w);
+        }
     int found = 3*NUM_BEADS;
     for (int i = LOCAL_ID; i < 3*NUM_BEADS; i += LOCAL_SIZE)
         if (notFinite(y1[i]) && i < found)
@@ -334,6 +339,19 @@ KERNEL void checkTry(GLOBAL const double* RESTRICT err, GLOBAL const double* RES
         }
     }
     SYNC_THREADS;
+}
+
+/**
+ * What the end of a try needs, in one download (one work group of REDUCE_SIZE):
+ * result[0] = max over beads of |err_b|^2, result[1] = the number of beads for which it is
+ * not finite (maxBeadSquare), result[2] = the smallest index i with y1_i not finite, or
+ * 3 NUM_BEADS (firstNonFinite).
+ */
+KERNEL void checkTry(GLOBAL const double* RESTRICT err, GLOBAL const double* RESTRICT y1, GLOBAL double* RESTRICT result) {
+    LOCAL double worst[REDUCE_SIZE];
+    LOCAL double bad[REDUCE_SIZE];
+    LOCAL int first[REDUCE_SIZE];
+    checkTryParts(err, y1, worst, bad, first);
     if (LOCAL_ID == 0) {
         result[0] = worst[0];
         result[1] = bad[0];
@@ -477,38 +495,55 @@ KERNEL void counterNormals(GLOBAL double* RESTRICT out, mm_ulong key, mm_ulong d
 // largest distance of a bead from that centre). The batch reads the Context with readPositions
 // and readForces under a particleBead over all copies' beads.
 
+/** to[toOffset + i] = from[fromOffset + i] for i < count. */
+KERNEL void moveNumbers(GLOBAL const double* RESTRICT from, int fromOffset, GLOBAL double* RESTRICT to, int toOffset,
+        int count) {
+    for (int i = GLOBAL_ID; i < count; i += GLOBAL_SIZE)
+        to[toOffset+i] = from[fromOffset+i];
+}
+
+// A batch keeps every copy's vectors in one array, the arena (3n numbers a vector, at an
+// offset of its own); `table` holds what the host packed for a round (offsets as doubles,
+// exact below 2^53). The per-copy kernels below take the copies listed at table[base ..] in
+// turn, one work group (or one tile of rows) per copy, so one launch serves every copy.
+
 /**
- * all[copy] = y, centres[copy] = its centre of mass (summed as centreOfMass sums, so a copy is
- * shifted exactly as when it is alone) and its reach. One work group of REDUCE_SIZE.
+ * For listed copy c (its y at arena + table[base + c]): all[c] = y, centres[4c ..] = its centre
+ * of mass (summed as centreOfMass sums, so a copy is shifted exactly as when it is alone) and
+ * its reach (the largest distance of a bead from that centre). Work groups of REDUCE_SIZE.
  */
-KERNEL void gatherCopy(GLOBAL const double* RESTRICT y, GLOBAL double* RESTRICT all, GLOBAL double* RESTRICT centres,
-        int copy) {
+KERNEL void gatherCopies(GLOBAL const double* RESTRICT arena, GLOBAL const double* RESTRICT table, int base,
+        int copies, GLOBAL double* RESTRICT all, GLOBAL double* RESTRICT centres) {
     LOCAL double part[3*REDUCE_SIZE];
-    sumPositions(y, part);  // as centreOfMass sums
-    const double cx = part[0]/NUM_BEADS, cy = part[REDUCE_SIZE]/NUM_BEADS, cz = part[2*REDUCE_SIZE]/NUM_BEADS;
-    SYNC_THREADS;
-    GLOBAL double* RESTRICT out = all+3*(mm_long) copy*NUM_BEADS;
-    double reach = 0;
-    for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
-        const double x = y[3*b], yy = y[3*b+1], z = y[3*b+2];
-        out[3*b] = x;
-        out[3*b+1] = yy;
-        out[3*b+2] = z;
-        const double rr = (x-cx)*(x-cx)+(yy-cy)*(yy-cy)+(z-cz)*(z-cz);
-        reach = (rr > reach ? rr : reach);  // a NaN is left out: such a copy fails on its own
-    }
-    part[LOCAL_ID] = reach;
-    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+    for (int copy = GROUP_ID; copy < copies; copy += NUM_GROUPS) {
         SYNC_THREADS;
-        if (LOCAL_ID < stride && part[LOCAL_ID+stride] > part[LOCAL_ID])
-            part[LOCAL_ID] = part[LOCAL_ID+stride];
-    }
-    SYNC_THREADS;
-    if (LOCAL_ID == 0) {
-        centres[4*copy] = cx;
-        centres[4*copy+1] = cy;
-        centres[4*copy+2] = cz;
-        centres[4*copy+3] = sqrt(part[0]);
+        GLOBAL const double* RESTRICT y = arena+(int) table[base+copy];
+        sumPositions(y, part);  // as centreOfMass sums
+        const double cx = part[0]/NUM_BEADS, cy = part[REDUCE_SIZE]/NUM_BEADS, cz = part[2*REDUCE_SIZE]/NUM_BEADS;
+        SYNC_THREADS;
+        GLOBAL double* RESTRICT out = all+3*(mm_long) copy*NUM_BEADS;
+        double reach = 0;
+        for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
+            const double x = y[3*b], yy = y[3*b+1], z = y[3*b+2];
+            out[3*b] = x;
+            out[3*b+1] = yy;
+            out[3*b+2] = z;
+            const double rr = (x-cx)*(x-cx)+(yy-cy)*(yy-cy)+(z-cz)*(z-cz);
+            reach = (rr > reach ? rr : reach);  // a NaN is left out: such a copy fails on its own
+        }
+        part[LOCAL_ID] = reach;
+        for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
+            SYNC_THREADS;
+            if (LOCAL_ID < stride && part[LOCAL_ID+stride] > part[LOCAL_ID])
+                part[LOCAL_ID] = part[LOCAL_ID+stride];
+        }
+        SYNC_THREADS;
+        if (LOCAL_ID == 0) {
+            centres[4*copy] = cx;
+            centres[4*copy+1] = cy;
+            centres[4*copy+2] = cz;
+            centres[4*copy+3] = sqrt(part[0]);
+        }
     }
 }
 
@@ -541,9 +576,38 @@ KERNEL void writeCopies(GLOBAL real4* RESTRICT posq,
     }
 }
 
-/** out = all[copy] (3n numbers). */
-KERNEL void scatterCopy(GLOBAL const double* RESTRICT all, GLOBAL double* RESTRICT out, int copy) {
-    GLOBAL const double* RESTRICT in = all+3*(mm_long) copy*NUM_BEADS;
-    for (int i = GLOBAL_ID; i < 3*NUM_BEADS; i += GLOBAL_SIZE)
-        out[i] = in[i];
+/**
+ * For listed copy c, table[base + 3c ..] = (x, copy, v): arena[v ..] = mu(arena[x ..]) f, f
+ * the copy's forces (forces + 3n copy). One tile of TILE rows (mobilityRows) a work group.
+ */
+KERNEL void mobilityCopies(GLOBAL double* arena, GLOBAL const double* RESTRICT forces,
+        GLOBAL const double* RESTRICT table, int base, int copies, double d, double mu0) {
+    LOCAL double tile[6*TILE];
+    const int tiles = (NUM_BEADS+TILE-1)/TILE;
+    for (int unit = GROUP_ID; unit < copies*tiles; unit += NUM_GROUPS) {
+        GLOBAL const double* entry = table+base+3*(unit/tiles);
+        mobilityRows(arena+(int) entry[0], forces+3*(mm_long) ((int) entry[1])*NUM_BEADS, arena+(int) entry[2],
+                     (unit%tiles)*TILE, d, mu0, tile);
+    }
+}
+
+/**
+ * checkTry for listed copy c, table[base + 2c ..] = (err, y1) offsets (err < 0: none, its
+ * norm 0): result[3c ..] as checkTry's result. One work group of REDUCE_SIZE a copy.
+ */
+KERNEL void checkCopies(GLOBAL const double* RESTRICT arena, GLOBAL const double* RESTRICT table, int base,
+        int copies, GLOBAL double* RESTRICT result) {
+    LOCAL double worst[REDUCE_SIZE];
+    LOCAL double bad[REDUCE_SIZE];
+    LOCAL int first[REDUCE_SIZE];
+    for (int copy = GROUP_ID; copy < copies; copy += NUM_GROUPS) {
+        SYNC_THREADS;
+        const int errAt = (int) table[base+2*copy];
+        checkTryParts(errAt < 0 ? 0 : arena+errAt, arena+(int) table[base+2*copy+1], worst, bad, first);
+        if (LOCAL_ID == 0) {
+            result[3*copy] = worst[0];
+            result[3*copy+1] = bad[0];
+            result[3*copy+2] = first[0];
+        }
+    }
 }

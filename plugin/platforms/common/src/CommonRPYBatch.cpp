@@ -6,10 +6,150 @@
 #include "openmm/internal/ContextImpl.h"
 
 #include <algorithm>
+#include <climits>
+#include <cmath>
+#include <limits>
+#include <sstream>
 
 using namespace OpenMM;
 using namespace KnotMM;
+using std::string;
 using std::vector;
+
+namespace {
+
+const int FIRST_SLOTS_PER_COPY = 40;  // a stepper makes about 37 vectors (every method's)
+
+} // namespace
+
+CommonVector::~CommonVector() {
+    if (arena)
+        arena->give(copy, slot);
+}
+
+// --- the arena ---------------------------------------------------------------------------------
+
+CopyArena::CopyArena(ComputeContext& cc, int stride, int copies) : cc(cc), stride(stride), freeSlots(copies) {}
+
+int CopyArena::take(int copy) {
+    if (!freeSlots[copy].empty()) {
+        const int slot = freeSlots[copy].back();
+        freeSlots[copy].pop_back();
+        return slot;
+    }
+    if (used == capacity) {
+        const int grown = std::max(capacity * 2, (int) freeSlots.size() * FIRST_SLOTS_PER_COPY);
+        if ((double) grown * stride > (double) INT_MAX)
+            throw OpenMMException("RPYIntegrator: the copies' vectors would need more than 2^31 numbers; "
+                                  "run fewer copies in one Context");
+        std::unique_ptr<ComputeArray> bigger(new ComputeArray());
+        bigger->initialize<double>(cc, (size_t) grown * stride, "rpyCopyArena");
+        if (used > 0) {
+            move->setArg(0, *numbers);
+            move->setArg(1, 0);
+            move->setArg(2, *bigger);
+            move->setArg(3, 0);
+            move->setArg(4, used * stride);
+            move->execute(used * stride);
+        }
+        numbers = std::move(bigger);
+        capacity = grown;
+    }
+    return used++;
+}
+
+// --- a copy's backend ----------------------------------------------------------------------------
+
+ArenaBackend::ArenaBackend(CommonRPYBatch& batch, int copy, ComputeContext& cc, int numBeads,
+                           const RPYIntegrator& integrator, const CommonRPYBackend* prototype)
+    : BatchedBackend<CommonRPYBackend>(batch, copy, cc, numBeads, integrator, prototype), owner(batch) {}
+
+VectorPtr ArenaBackend::createVector() {
+    CommonVector* v = new CommonVector();
+    CopyArena& arena = owner.arenaOf();
+    v->slot = arena.take(index);
+    v->arena = owner.sharedArena();
+    v->copy = index;
+    v->offset = v->slot * arena.stride;
+    DeferredOp zero;  // 3n zeros, in order with the copy's other operations
+    zero.pattern = "z";
+    zero.out = v->offset;
+    owner.defer(index, std::move(zero));
+    return VectorPtr(v);
+}
+
+void ArenaBackend::combine(StateVector& out, std::initializer_list<Term> terms) {
+    const int count = (int) terms.size();
+    if (count < 1 || count > 8)
+        throw OpenMMException("CommonRPYBackend::combine: 1 to 8 terms");
+    DeferredOp op;
+    op.out = arenaOffset(out);
+    int k = 0;
+    for (const Term& t : terms) {
+        op.pattern += t.divide ? 'd' : 'm';
+        op.in[k] = arenaOffset(*t.v);
+        op.c[k] = t.c;
+        k++;
+    }
+    owner.defer(index, std::move(op));
+}
+
+void ArenaBackend::copy(StateVector& out, const StateVector& in) {
+    combine(out, {times(1.0, in)});  // 1 x: the numbers themselves
+}
+
+void ArenaBackend::setZero(StateVector& out) {
+    DeferredOp op;
+    op.pattern = "z";
+    op.out = arenaOffset(out);
+    owner.defer(index, std::move(op));
+}
+
+RPYBackend::TryCheck ArenaBackend::checkTry(const StateVector& err, const StateVector& y1) {
+    if (owner.inFiberOf(index))
+        return owner.waitForCheck(index, &err, y1);
+    owner.settleCopy(index);
+    return CommonRPYBackend::checkTry(owner.stage(0, err), owner.stage(1, y1));
+}
+
+int ArenaBackend::firstNonFinite(const StateVector& v) {
+    if (owner.inFiberOf(index))
+        return owner.waitForCheck(index, nullptr, v).nonFinite;
+    return CommonRPYBackend::firstNonFinite(owner.stage(0, v));
+}
+
+bool ArenaBackend::equal(const StateVector& a, const StateVector& b) {
+    return CommonRPYBackend::equal(owner.stage(0, a), owner.stage(1, b));
+}
+
+double ArenaBackend::norm(const StateVector& v) { return CommonRPYBackend::norm(owner.stage(0, v)); }
+
+double ArenaBackend::maxBeadNorm(const StateVector& v) { return CommonRPYBackend::maxBeadNorm(owner.stage(0, v)); }
+
+void ArenaBackend::factorNoise(const StateVector& y) { CommonRPYBackend::factorNoise(owner.stage(0, y)); }
+
+void ArenaBackend::applyNoise(double scale, const StateVector& z, StateVector& out) {
+    CommonRPYBackend::applyNoise(scale, owner.stage(0, z), owner.scratchVector(1));
+    owner.unstage(1, out);
+}
+
+void ArenaBackend::normals(NoiseStream& stream, StateVector& out) {
+    owner.settleCopy(index);
+    CommonRPYBackend::normals(stream, owner.scratchVector(0));
+    owner.unstage(0, out);
+}
+
+void ArenaBackend::download(const StateVector& v, vector<double>& host) {
+    CommonRPYBackend::download(owner.stage(0, v), host);
+}
+
+void ArenaBackend::upload(const vector<double>& host, StateVector& v) {
+    owner.settleCopy(index);
+    CommonRPYBackend::upload(host, owner.scratchVector(0));
+    owner.unstage(0, v);
+}
+
+// --- the batch -----------------------------------------------------------------------------------
 
 CommonRPYBatch::CommonRPYBatch(ComputeContext& cc, const System& system, const RPYIntegrator& integrator)
     : CopyBatch(system, integrator), cc(cc) {
@@ -24,31 +164,58 @@ CommonRPYBatch::CommonRPYBatch(ComputeContext& cc, const System& system, const R
     all.initialize<double>(cc, 3 * (size_t) n * count, "rpyBatchPositions");
     allForces.initialize<double>(cc, 3 * (size_t) n * count, "rpyBatchForces");
     centres.initialize<double>(cc, 4 * count, "rpyBatchCentres");
+    checks.initialize<double>(cc, 3 * count, "rpyBatchChecks");
+    table.initialize<double>(cc, 16 * (size_t) count, "rpyBatchTable");
     hostCentres.assign(4 * count, 0.0);
-    createCopies(integrator);
-    createKernels();
+    hostChecks.assign(3 * count, 0.0);
+    pending.resize(count);
+    arena.reset(new CopyArena(cc, 3 * n, count));
+    createCopies(integrator);  // the first copy's backend compiles the program (createKernels)
+    for (int k = 0; k < 3; k++) {
+        scratch.emplace_back(new CommonVector());
+        scratch.back()->a.initialize<double>(cc, 3 * n, "rpyBatchScratch");
+    }
 }
 
 std::unique_ptr<RPYBackend> CommonRPYBatch::makeBackend(int copy, const RPYIntegrator& settings) {
     const CommonRPYBackend* prototype = copy == 0 ? nullptr : &backendOf(0);
-    return std::unique_ptr<RPYBackend>(new BatchedBackend<CommonRPYBackend>(*this, copy, cc, n, settings, prototype));
+    std::unique_ptr<ArenaBackend> made(new ArenaBackend(*this, copy, cc, n, settings, prototype));
+    if (copy == 0)  // before any vector is made: the arena grows with moveNumbers
+        createKernels(*made);
+    return std::unique_ptr<RPYBackend>(std::move(made));
 }
 
-void CommonRPYBatch::createKernels() {
-    ComputeProgram& program = backendOf(0).program;
+void CommonRPYBatch::createKernels(const CommonRPYBackend& first) {
+    ComputeProgram program = first.program;
     const bool mixed = cc.getUseMixedPrecision();
-    gatherKernel = program->createKernel("gatherCopy");
+    moveKernel = program->createKernel("moveNumbers");
+    moveKernel->addArg(all);  // from, at, to, at, count: set per call
+    moveKernel->addArg(0);
+    moveKernel->addArg(all);
+    moveKernel->addArg(0);
+    moveKernel->addArg(0);
+    arena->move = moveKernel;
+    gatherKernel = program->createKernel("gatherCopies");
     writeKernel = program->createKernel("writeCopies");
-    scatterKernel = program->createKernel("scatterCopy");
     readPositionsKernel = program->createKernel("readPositions");
     readForcesKernel = program->createKernel("readForces");
-    if (gatherKernel->getMaxBlockSize() < backendOf(0).reduceSize)
-        throw OpenMMException("RPYIntegrator: the device runs kernel gatherCopy in work groups of at most " +
-                              std::to_string(gatherKernel->getMaxBlockSize()) + " items, fewer than it needs");
-    gatherKernel->addArg(all);  // y: set per call
+    mobilityKernel = program->createKernel("mobilityCopies");
+    checkKernel = program->createKernel("checkCopies");
+    for (ComputeKernel* k : {&gatherKernel, &checkKernel})
+        if ((*k)->getMaxBlockSize() < first.reduceSize)
+            throw OpenMMException("RPYIntegrator: the device runs kernel " + (*k)->getName() +
+                                  " in work groups of at most " + std::to_string((*k)->getMaxBlockSize()) +
+                                  " items, fewer than it needs");
+    if (mobilityKernel->getMaxBlockSize() < first.tileSize)
+        throw OpenMMException("RPYIntegrator: the device runs kernel mobilityCopies in work groups of at most " +
+                              std::to_string(mobilityKernel->getMaxBlockSize()) + " items, fewer than it needs");
+    // the arena and the table: set per call (either may grow)
+    gatherKernel->addArg(all);
+    gatherKernel->addArg(table);
+    gatherKernel->addArg(0);
+    gatherKernel->addArg(0);
     gatherKernel->addArg(all);
     gatherKernel->addArg(centres);
-    gatherKernel->addArg(0);
     writeKernel->addArg(cc.getPosq());
     if (mixed)
         writeKernel->addArg(cc.getPosqCorrection());
@@ -58,9 +225,6 @@ void CommonRPYBatch::createKernels() {
     writeKernel->addArg(centres);
     writeKernel->addArg(0.0);  // spacing: set per call
     writeKernel->addArg(side);
-    scatterKernel->addArg(allForces);
-    scatterKernel->addArg(allForces);  // out, copy: set per call
-    scatterKernel->addArg(0);
     readPositionsKernel->addArg(cc.getPosq());
     if (mixed)
         readPositionsKernel->addArg(cc.getPosqCorrection());
@@ -71,6 +235,184 @@ void CommonRPYBatch::createKernels() {
     readForcesKernel->addArg(cc.getAtomIndexArray());
     readForcesKernel->addArg(particleBead);
     readForcesKernel->addArg(allForces);
+    mobilityKernel->addArg(all);  // arena
+    mobilityKernel->addArg(allForces);
+    mobilityKernel->addArg(table);
+    mobilityKernel->addArg(0);
+    mobilityKernel->addArg(0);
+    mobilityKernel->addArg(first.diameter);
+    mobilityKernel->addArg(first.mu0);
+    checkKernel->addArg(all);  // arena
+    checkKernel->addArg(table);
+    checkKernel->addArg(0);
+    checkKernel->addArg(0);
+    checkKernel->addArg(checks);
+}
+
+ComputeKernel& CommonRPYBatch::combineKernel(const string& pattern) {
+    auto found = combineKernels.find(pattern);
+    if (found != combineKernels.end())
+        return found->second;
+    // For listed copy c, its entry e = table + base + c (1 + 2 count): arena[e[0] + i] = t_0 +
+    // t_1 + ..., added left to right, t_k = e[2 + 2k] arena[e[1 + 2k] + i] ('m') or
+    // arena[e[1 + 2k] + i] / e[2 + 2k] ('d'), as CommonRPYBackend::combine; "z": 0.
+    const int count = pattern == "z" ? 0 : (int) pattern.size();
+    std::stringstream src;
+    src << "KERNEL void combineCopies(GLOBAL double* arena, GLOBAL const double* RESTRICT table, int base, "
+           "int copies) {\n"
+           "    for (int g = GLOBAL_ID; g < copies*SIZE; g += GLOBAL_SIZE) {\n"
+           "        const int c = g/SIZE, i = g-c*SIZE;\n"
+           "        GLOBAL const double* e = table+base+c*"
+        << 1 + 2 * count << ";\n";
+    if (count == 0)
+        src << "        const double acc = 0.0;\n";
+    for (int k = 0; k < count; k++) {
+        const string v = "arena[(int) e[" + std::to_string(1 + 2 * k) + "]+i]";
+        const string c = "e[" + std::to_string(2 + 2 * k) + "]";
+        const string term = pattern[k] == 'd' ? v + "/" + c : c + "*" + v;
+        src << (k == 0 ? "        double acc = " : "        acc = acc + ") << term << ";\n";
+    }
+    src << "        arena[(int) e[0]+i] = acc;\n    }\n}\n";
+    std::map<string, string> defines = {{"SIZE", cc.intToString(3 * n)}};
+    ComputeProgram program = cc.compileProgram(src.str(), defines);
+    combinePrograms[pattern] = program;
+    ComputeKernel kernel = program->createKernel("combineCopies");
+    kernel->addArg(all);  // arena, table: set per call
+    kernel->addArg(table);
+    kernel->addArg(0);
+    kernel->addArg(0);
+    return combineKernels[pattern] = kernel;
+}
+
+void CommonRPYBatch::uploadTable() {
+    if (hostTable.empty())
+        return;
+    if (table.getSize() < hostTable.size())
+        table.resize(std::max(hostTable.size(), 2 * table.getSize()));
+    table.uploadSubArray(hostTable.data(), 0, (int) hostTable.size());
+}
+
+void CommonRPYBatch::settleCopy(int copy) {
+    if (pending[copy].empty())
+        return;
+    if (inFiberOf(copy))
+        waitForSettle(copy);  // the round launches it with every copy's
+    else {
+        hostTable.clear();
+        launchPending();
+    }
+}
+
+CommonVector& CommonRPYBatch::stage(int k, const StateVector& v) {
+    const CommonVector& from = static_cast<const CommonVector&>(v);
+    settleCopy(from.copy);
+    moveKernel->setArg(0, *arena->numbers);
+    moveKernel->setArg(1, from.offset);
+    moveKernel->setArg(2, scratch[k]->a);
+    moveKernel->setArg(3, 0);
+    moveKernel->setArg(4, 3 * n);
+    moveKernel->execute(3 * n);
+    return *scratch[k];
+}
+
+void CommonRPYBatch::unstage(int k, StateVector& v) {
+    const CommonVector& to = static_cast<const CommonVector&>(v);
+    settleCopy(to.copy);
+    moveKernel->setArg(0, scratch[k]->a);
+    moveKernel->setArg(1, 0);
+    moveKernel->setArg(2, *arena->numbers);
+    moveKernel->setArg(3, to.offset);
+    moveKernel->setArg(4, 3 * n);
+    moveKernel->execute(3 * n);
+}
+
+void CommonRPYBatch::launchPending() {
+    // The i-th operations of all copies, grouped by pattern, in one launch each; a copy's
+    // operations in its order (launch i+1 after launch i on the one queue). The table (this
+    // round's, started by the caller) gets each launch's entries; uploaded once, then launched.
+    struct Launch {
+        string pattern;
+        int base, copies;
+    };
+    vector<Launch> launches;
+    size_t longest = 0;
+    for (const auto& ops : pending)
+        longest = std::max(longest, ops.size());
+    vector<int> group;
+    for (size_t i = 0; i < longest; i++) {
+        vector<bool> done(pending.size(), false);
+        for (size_t first = 0; first < pending.size(); first++) {
+            if (done[first] || pending[first].size() <= i)
+                continue;
+            const string& pattern = pending[first][i].pattern;
+            Launch launch{pattern, tableAt(), 0};
+            for (size_t k = first; k < pending.size(); k++) {
+                if (done[k] || pending[k].size() <= i || pending[k][i].pattern != pattern)
+                    continue;
+                done[k] = true;
+                const DeferredOp& op = pending[k][i];
+                hostTable.push_back(op.out);
+                const int count = pattern == "z" ? 0 : (int) pattern.size();
+                for (int t = 0; t < count; t++) {
+                    hostTable.push_back(op.in[t]);
+                    hostTable.push_back(op.c[t]);
+                }
+                launch.copies++;
+            }
+            launches.push_back(launch);
+        }
+    }
+    for (auto& ops : pending)
+        ops.clear();
+    uploadTable();
+    for (const Launch& launch : launches) {
+        ComputeKernel& kernel = combineKernel(launch.pattern);
+        kernel->setArg(0, *arena->numbers);
+        kernel->setArg(1, table);
+        kernel->setArg(2, launch.base);
+        kernel->setArg(3, launch.copies);
+        kernel->execute(launch.copies * 3 * n);
+    }
+}
+
+void CommonRPYBatch::settle() {
+    // One round: the recorded operations, then the checks the copies wait for, with one upload
+    // of the table and one download of the checks.
+    hostTable.clear();
+    vector<int> checking;
+    for (int j = 0; j < numCopies(); j++)
+        if (copyAt(j).state == State::WaitingForCheck)
+            checking.push_back(j);
+    try {
+        launchPending();
+        if (checking.empty())
+            return;
+        hostTable.clear();
+        for (int j : checking) {
+            const Copy& c = copyAt(j);
+            hostTable.push_back(c.request2 != nullptr ? arenaOffset(*c.request2) : -1);
+            hostTable.push_back(arenaOffset(*c.request));
+        }
+        uploadTable();
+        const int reduceSize = backendOf(0).reduceSize;
+        checkKernel->setArg(0, *arena->numbers);
+        checkKernel->setArg(1, table);
+        checkKernel->setArg(2, 0);
+        checkKernel->setArg(3, (int) checking.size());
+        checkKernel->execute(std::min((int) checking.size(), cc.getNumThreadBlocks()) * reduceSize, reduceSize);
+        checks.download(hostChecks.data());  // the one download of the round's checks
+        for (size_t i = 0; i < checking.size(); i++) {
+            const double* r = &hostChecks[3 * i];
+            copyAt(checking[i]).check = RPYBackend::TryCheck{r[1] == 0.0 ? std::sqrt(r[0]) : std::numeric_limits<double>::infinity(),
+                                                 r[2] < 3 * n ? (int) r[2] : -1};
+        }
+    }
+    catch (...) {
+        for (int j = 0; j < numCopies(); j++)
+            if (copyAt(j).state != State::Done && copyAt(j).state != State::Idle)
+                copyAt(j).jobError = std::current_exception();
+        return;
+    }
 }
 
 void CommonRPYBatch::readContextPositions(ContextImpl&, int copy, StateVector& positions) {
@@ -78,20 +420,44 @@ void CommonRPYBatch::readContextPositions(ContextImpl&, int copy, StateVector& p
         readPositionsKernel->execute(cc.getNumAtoms());
         readAll = true;
     }
-    scatterKernel->setArg(0, all);
-    scatterKernel->setArg(1, data(positions));
-    scatterKernel->setArg(2, copy);
-    scatterKernel->execute(3 * n);
+    settleCopy(copy);  // the vector's zeros first
+    moveKernel->setArg(0, all);
+    moveKernel->setArg(1, 3 * n * copy);
+    moveKernel->setArg(2, *arena->numbers);
+    moveKernel->setArg(3, arenaOffset(positions));
+    moveKernel->setArg(4, 3 * n);
+    moveKernel->execute(3 * n);
 }
 
 void CommonRPYBatch::evaluate(ContextImpl& context) {
     const int count = numCopies();
-    const int reduceSize = backendOf(0).reduceSize;
+    const int reduceSize = backendOf(0).reduceSize, tileSize = backendOf(0).tileSize;
+    hostTable.clear();
+    vector<int> waiting;
     for (int j = 0; j < count; j++) {
         const Copy& c = copyAt(j);
-        gatherKernel->setArg(0, data(c.state == State::WaitingForVelocity ? *c.request : *c.positions));
-        gatherKernel->setArg(3, j);
-        gatherKernel->execute(reduceSize, reduceSize);
+        hostTable.push_back(arenaOffset(c.state == State::WaitingForVelocity ? *c.request : *c.positions));
+        if (c.state == State::WaitingForVelocity)
+            waiting.push_back(j);
+    }
+    const int mobilityAt = tableAt();
+    for (int j : waiting) {
+        const Copy& c = copyAt(j);
+        hostTable.push_back(arenaOffset(*c.request));
+        hostTable.push_back(j);
+        hostTable.push_back(arenaOffset(*c.reply));
+    }
+    try {
+        uploadTable();
+        gatherKernel->setArg(0, *arena->numbers);
+        gatherKernel->setArg(1, table);
+        gatherKernel->setArg(2, 0);
+        gatherKernel->setArg(3, count);
+        gatherKernel->execute(std::min(count, cc.getNumThreadBlocks()) * reduceSize, reduceSize);
+    }
+    catch (const std::exception& error) {
+        forceError = error.what();
+        return;
     }
     double reach = 0.0;
     if (apart) {  // the grid's spacing from the widest copy: the one download of an evaluation
@@ -104,23 +470,19 @@ void CommonRPYBatch::evaluate(ContextImpl& context) {
     writeKernel->execute(cc.getNumAtoms());
     if (!calcForces(context, [&]() { cc.getIntegrationUtilities().computeVirtualSites(); }))
         return;
-    readForcesKernel->execute(cc.getNumAtoms());
-    for (int j = 0; j < count; j++) {
-        Copy& c = copyAt(j);
-        if (c.state != State::WaitingForVelocity)
-            continue;
-        CommonRPYBackend& backend = backendOf(j);
-        try {
-            scatterKernel->setArg(0, allForces);
-            scatterKernel->setArg(1, backend.forces);
-            scatterKernel->setArg(2, j);
-            scatterKernel->execute(3 * n);
-            // the mobility depends on differences only: the copy's y itself
-            backend.mobilityTimes(data(*c.request), backend.forces, data(*c.reply));
-        }
-        catch (...) {
-            c.jobError = std::current_exception();
-        }
+    try {
+        readForcesKernel->execute(cc.getNumAtoms());
+        // the mobility depends on differences only: each copy's y itself
+        const int tiles = (n + tileSize - 1) / tileSize;
+        const int units = (int) waiting.size() * tiles;
+        mobilityKernel->setArg(0, *arena->numbers);
+        mobilityKernel->setArg(2, table);
+        mobilityKernel->setArg(3, mobilityAt);
+        mobilityKernel->setArg(4, (int) waiting.size());
+        mobilityKernel->execute(std::max(1, std::min(units, cc.getNumThreadBlocks())) * tileSize, tileSize);
+    }
+    catch (const std::exception& error) {
+        forceError = error.what();
     }
 }
 

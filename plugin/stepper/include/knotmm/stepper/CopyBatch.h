@@ -65,6 +65,12 @@ public:
     void waitForVelocity(int copy, const StateVector& y, StateVector& v);
     /** Wait until the batch has made the copy's noise factor at y (runJobs). */
     void waitForFactor(int copy, const StateVector& y);
+    /** Wait until the batch has made checkTry(err, y1) for the copy (err null: y1's check alone). */
+    RPYBackend::TryCheck waitForCheck(int copy, const StateVector* err, const StateVector& y1);
+    /** Wait until the batch has done the copy's deferred work (settle). */
+    void waitForSettle(int copy);
+    /** True while copy's fiber runs (its backend's calls can wait); false outside stepTo. */
+    bool inFiberOf(int copy) const { return running == copies[copy].get(); }
     /** The copy's positions (what its stepper last wrote, or was given). */
     StateVector& positionsOf(int copy) { return *copies[copy]->positions; }
 
@@ -90,12 +96,19 @@ protected:
     bool calcForces(OpenMM::ContextImpl& context, const std::function<void()>& placeSites);
     /** Work the waiting copies left for after evaluate (velocities, factors); default none. */
     virtual void runJobs() {}
+    /**
+     * First in each round, and once after the last: the work the copies deferred (a platform
+     * that defers its vector operations to launch them for all copies at once), then the
+     * checks the copies wait for (WaitingForCheck: request2 = err or null, request = y1; the
+     * result into `check`). Default: nothing deferred, each check made by the copy's backend.
+     */
+    virtual void settle();
     /** The grid spacing for copies reaching `reach` (nm) from their centres; also sets spacing(). */
     double placeCopies(double reach);
     /** Copy k's grid point (nm), for the spacing placeCopies set. */
     void gridOffset(int copy, double offset[3]) const;
 
-    enum class State { Idle, Runnable, WaitingForVelocity, WaitingForFactor, Done };
+    enum class State { Idle, Runnable, WaitingForVelocity, WaitingForFactor, WaitingForCheck, WaitingToSettle, Done };
     struct Copy {
         std::unique_ptr<RPYIntegrator> settings;  // step size and settings of this copy alone
         std::unique_ptr<RPYBackend> backend;
@@ -103,7 +116,9 @@ protected:
         VectorPtr positions;                      // 3n, in the backend's memory
         double time = 0.0, target = 0.0;
         State state = State::Idle;
-        const StateVector* request = nullptr;     // where the copy wants its velocity or factor
+        const StateVector* request = nullptr;     // where the copy wants its velocity or factor; y1 of a check
+        const StateVector* request2 = nullptr;    // err of a check (null: none)
+        RPYBackend::TryCheck check{0.0, -1};      // the check's result
         StateVector* reply = nullptr;             // where the velocity goes
         std::exception_ptr jobError;              // the job's failure, rethrown in the fiber
         std::string faultKind, faultMessage;
