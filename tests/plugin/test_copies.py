@@ -35,24 +35,27 @@ def _starts(k=K, seed=0):
     return [x0 + 0.05 * rng.standard_normal(x0.shape) for _ in range(k)]
 
 
-def _integrator(method, seed=0, threads=1):
-    if method == "rk23":
-        return RPYIntegrator(0.01, "rk23", threads=threads)
-    return RPYIntegrator(0.002, method, threads=threads, kT=0.5, seed=seed)
+DETERMINISTIC = ("rk23", "rkc2", "heun")
 
 
-def _single(x, method, platform, seed=0):
-    integ = _integrator(method, seed)
+def _integrator(method, seed=0, threads=1, step=None):
+    if method in DETERMINISTIC:
+        return RPYIntegrator(step or 0.01, method, threads=threads)
+    return RPYIntegrator(step or 0.002, method, threads=threads, kT=0.5, seed=seed)
+
+
+def _single(x, method, platform, seed=0, step=None):
+    integ = _integrator(method, seed, step=step)
     ctx = _context(chain_system(x), integ, platform)
     ctx.setPositions(x)
     return integ, ctx
 
 
-def _batch(starts, method, platform, singles=None, threads=1, apart=True):
+def _batch(starts, method, platform, singles=None, threads=1, apart=True, step=None):
     """The copies on a grid (``apart``, a System with knotmm's NonbondedForce) or in one
     place (``copies_system``'s interaction groups)."""
     k = len(starts)
-    integ = _integrator(method, threads=threads)
+    integ = _integrator(method, threads=threads, step=step)
     integ.setNumCopies(k)
     integ.setCopiesApart(apart)
     x = np.vstack(starts)
@@ -83,14 +86,12 @@ def _accepted(integ, c, method, platform):
     return probe.getNumAcceptedSteps()
 
 
-@pytest.mark.parametrize("apart", [True, False])
-@pytest.mark.parametrize("platform", PLATFORMS)
-@pytest.mark.parametrize("method", ["rk23", "ito_heun", "ito_heun_adaptive"])
-def test_each_copy_follows_its_single_run(method, platform, apart):
+def _follow_single_runs(method, platform, apart=True, duration=None, step=None):
+    """Step K copies and their K single runs to ``duration``; hold each copy to its run."""
     starts = _starts()
-    singles = [_single(x, method, platform, seed=10 + c) for c, x in enumerate(starts)]
-    batch, _ = _batch(starts, method, platform, singles, apart=apart)
-    duration = 1.0 if method == "rk23" else 0.2
+    singles = [_single(x, method, platform, seed=10 + c, step=step) for c, x in enumerate(starts)]
+    batch, _ = _batch(starts, method, platform, singles, apart=apart, step=step)
+    duration = duration or (1.0 if method in DETERMINISTIC else 0.2)
     for integ, _ctx in singles:
         integ.stepTo(duration)
     assert batch.stepCopiesTo([duration] * K, 1e9)
@@ -106,6 +107,37 @@ def test_each_copy_follows_its_single_run(method, platform, apart):
             assert _accepted(batch, c, method, platform) == integ.getNumAcceptedSteps()
     # the copies are different runs (their starts, their noise)
     assert np.abs(_copy(batch, 0) - _copy(batch, 1)).max() > 1e-3
+    return singles
+
+
+@pytest.mark.parametrize("apart", [True, False])
+@pytest.mark.parametrize("platform", PLATFORMS)
+@pytest.mark.parametrize("method", ["rk23", "ito_heun", "ito_heun_adaptive"])
+def test_each_copy_follows_its_single_run(method, platform, apart):
+    _follow_single_runs(method, platform, apart)
+
+
+DEVICES = [p for p in PLATFORMS if p in DEVICE_PLATFORMS]
+
+
+@pytest.mark.parametrize("platform", DEVICES)
+@pytest.mark.parametrize("method", ["rkc2", "heun", "euler_maruyama", "leimkuhler_matthews"])
+def test_on_a_device_every_method_s_copies_follow_their_single_runs(method, platform):
+    # a device batch records the copies' vector operations and launches them for all copies
+    # at once; the methods' other calls (norms of rkc2's spectral radius, the fixed steps'
+    # finiteness checks, the noise) run for one copy at a time between them
+    _follow_single_runs(method, platform, duration=0.5 if method in DETERMINISTIC else 0.1)
+
+
+@pytest.mark.parametrize("platform", DEVICES)
+def test_on_a_device_copies_that_reject_many_tries_follow_their_single_runs(platform):
+    # a first step of 1000 ps: every copy's tries are rejected until about 1e-4 ps, and each
+    # rejected try's noise is kept (a vector made mid-step, one more per rejection), so the
+    # copies' vectors outgrow the arena's first size and it grows under pending operations.
+    # In one place: on the grid, the tries' wild positions would set its spacing
+    singles = _follow_single_runs("ito_heun_adaptive", platform, apart=False, duration=0.05,
+                                  step=1e3)
+    assert all(integ.getNumRejectedSteps() >= 5 for integ, _ctx in singles)
 
 
 def test_a_copy_that_needs_small_steps_does_not_slow_the_others():
