@@ -233,6 +233,10 @@ RPYBackend::TryCheck CopyBatch::waitForCheck(int copy, const StateVector* err, c
     return c.check;
 }
 
+void CopyBatch::waitForNoise(int copy, const StateVector& z, StateVector& out) {
+    wait(*copies[copy], State::WaitingForNoise, z, &out);
+}
+
 void CopyBatch::waitForSettle(int copy) {
     Copy& c = *copies[copy];
     c.request = nullptr;

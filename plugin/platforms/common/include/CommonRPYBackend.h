@@ -97,6 +97,9 @@ public:
 
 private:
     friend class CommonRPYBatch;
+    friend class ArenaBackend;
+    /** The Cholesky factor of mu(y), y on the host (3n numbers, bead-major). */
+    void factorAt(const double* y);
     void setUp(const RPYIntegrator& integrator, const CommonRPYBackend* prototype);
     /** The fixed arguments of the kernels that read and write the Context. */
     void bindContext();

@@ -45,9 +45,12 @@ struct CopyArena {
     std::vector<std::vector<int>> freeSlots;        // per copy
 };
 
-/** A vector operation a copy recorded (combine, copy: one term of 1, setZero: pattern "z"). */
+/**
+ * A vector operation a copy recorded (combine, copy: one term of 1, setZero: pattern "z",
+ * normals of a counter-based stream: pattern "n", c = the key's and the draw's 32-bit halves).
+ */
 struct DeferredOp {
-    std::string pattern;  // 'm' (c v) or 'd' (v / c) per term; "z": zero
+    std::string pattern;  // 'm' (c v) or 'd' (v / c) per term; "z": zero; "n": normals
     int out = 0;          // arena offsets
     int in[8] = {0};
     double c[8] = {0.0};
@@ -73,6 +76,12 @@ public:
     void normals(NoiseStream& stream, StateVector& out) override;
     void download(const StateVector& v, std::vector<double>& host) override;
     void upload(const std::vector<double>& host, StateVector& v) override;
+    // Cholesky noise in a fiber: factorNoise records y (factorPoint), applyNoise waits for the
+    // round, which factors at it (once) and makes B z for every waiting copy with one download
+    // and one upload. Lanczos noise, and any call outside stepTo, runs for the copy alone.
+    VectorPtr factorPoint;       // y of the factor to make, in the arena
+    bool factorPending = false;  // factorPoint holds a y not factored yet
+    bool usesLanczos() const { return lanczos; }
 
 private:
     CommonRPYBatch& owner;
@@ -102,6 +111,8 @@ public:
     void unstage(int k, StateVector& v);
     /** The scratch vector k, to be written. */
     CommonVector& scratchVector(int k) { return *scratch[k]; }
+    /** The scale of copy's noise request (waitForNoise). */
+    void setNoiseScale(int copy, double scale) { noiseScale[copy] = scale; }
 
 protected:
     std::unique_ptr<RPYBackend> makeBackend(int copy, const RPYIntegrator& settings) override;
@@ -110,7 +121,9 @@ protected:
     void evaluate(OpenMM::ContextImpl& context) override;
 
 private:
-    CommonRPYBackend& backendOf(int copy) { return static_cast<CommonRPYBackend&>(*copyAt(copy).backend); }
+    ArenaBackend& backendOf(int copy) { return static_cast<ArenaBackend&>(*copyAt(copy).backend); }
+    /** The copies waiting for noise: factors where pending, then B z, one download, one upload. */
+    void makeNoise();
     /** The batch's kernels, from the first copy's program (before any vector is made). */
     void createKernels(const CommonRPYBackend& first);
     /** combineCopies for a pattern of terms, compiled when first used. */
@@ -128,10 +141,11 @@ private:
     OpenMM::ComputeArray particleBead;             // particle -> bead among all copies', -1 for a site
     OpenMM::ComputeArray all, allForces, centres;  // K 3n, K 3n, 4 K doubles
     OpenMM::ComputeArray table, checks;            // the round's table; 3 K doubles
-    std::vector<double> hostTable, hostCentres, hostChecks;
+    OpenMM::ComputeArray bulk;                     // noise requests and replies, 3n doubles each
+    std::vector<double> hostTable, hostCentres, hostChecks, hostBulk, hostNoise, noiseScale;
     bool readAll = false;                          // the Context's positions are in `all`
     OpenMM::ComputeKernel gatherKernel, writeKernel, readPositionsKernel, readForcesKernel, mobilityKernel,
-        checkKernel, moveKernel;
+        checkKernel, moveKernel, normalsKernel, collectKernel, spreadKernel;
     std::map<std::string, OpenMM::ComputeKernel> combineKernels;
     std::map<std::string, OpenMM::ComputeProgram> combinePrograms;
 };

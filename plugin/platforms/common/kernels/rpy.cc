@@ -462,31 +462,35 @@ inline DEVICE void philoxBoxMuller(mm_ulong wRadius, mm_ulong wAngle, double* z0
 }
 
 /**
- * out = the 3 NUM_BEADS normals of draw `draw` under `key`: block b is Philox4x64-10 of the
- * counter (b, draw, 0, 0) under the key (key, 0), giving normals 4b..4b+3. One thread a block.
+ * out[4b .. 4b+3] (those below 3 NUM_BEADS) = normals 4b..4b+3 of draw `draw` under `key`:
+ * Philox4x64-10 of the counter (b, draw, 0, 0) under the key (key, 0).
  */
-KERNEL void counterNormals(GLOBAL double* RESTRICT out, mm_ulong key, mm_ulong draw) {
-    for (int b = GLOBAL_ID; 4 * b < 3 * NUM_BEADS; b += GLOBAL_SIZE) {
-        mm_ulong c0 = (mm_ulong) b, c1 = draw, c2 = 0, c3 = 0, k0 = key, k1 = 0;
-        for (int round = 0; round < 10; round++) {
-            if (round > 0) {
-                k0 += 0x9E3779B97F4A7C15UL;
-                k1 += 0xBB67AE8584CAA73BUL;
-            }
-            mm_ulong hi0, lo0, hi1, lo1;
-            philoxMulHiLo(0xD2E7470EE14C6C93UL, c0, &hi0, &lo0);
-            philoxMulHiLo(0xCA5A826395121157UL, c2, &hi1, &lo1);
-            c0 = hi1 ^ c1 ^ k0;
-            c1 = lo1;
-            c2 = hi0 ^ c3 ^ k1;
-            c3 = lo0;
+DEVICE void philoxNormalsBlock(GLOBAL double* RESTRICT out, mm_ulong key, mm_ulong draw, int b) {
+    mm_ulong c0 = (mm_ulong) b, c1 = draw, c2 = 0, c3 = 0, k0 = key, k1 = 0;
+    for (int round = 0; round < 10; round++) {
+        if (round > 0) {
+            k0 += 0x9E3779B97F4A7C15UL;
+            k1 += 0xBB67AE8584CAA73BUL;
         }
-        double z[4];
-        philoxBoxMuller(c0, c1, &z[0], &z[1]);
-        philoxBoxMuller(c2, c3, &z[2], &z[3]);
-        for (int j = 0; j < 4 && 4 * b + j < 3 * NUM_BEADS; j++)
-            out[4 * b + j] = z[j];
+        mm_ulong hi0, lo0, hi1, lo1;
+        philoxMulHiLo(0xD2E7470EE14C6C93UL, c0, &hi0, &lo0);
+        philoxMulHiLo(0xCA5A826395121157UL, c2, &hi1, &lo1);
+        c0 = hi1 ^ c1 ^ k0;
+        c1 = lo1;
+        c2 = hi0 ^ c3 ^ k1;
+        c3 = lo0;
     }
+    double z[4];
+    philoxBoxMuller(c0, c1, &z[0], &z[1]);
+    philoxBoxMuller(c2, c3, &z[2], &z[3]);
+    for (int j = 0; j < 4 && 4 * b + j < 3 * NUM_BEADS; j++)
+        out[4 * b + j] = z[j];
+}
+
+/** out = the 3 NUM_BEADS normals of draw `draw` under `key` (philoxNormalsBlock). One thread a block. */
+KERNEL void counterNormals(GLOBAL double* RESTRICT out, mm_ulong key, mm_ulong draw) {
+    for (int b = GLOBAL_ID; 4 * b < 3 * NUM_BEADS; b += GLOBAL_SIZE)
+        philoxNormalsBlock(out, key, draw, b);
 }
 
 // --- K copies of n beads in one Context (CommonRPYBatch; NUM_BEADS is n) ----------------------
@@ -609,5 +613,37 @@ KERNEL void checkCopies(GLOBAL const double* RESTRICT arena, GLOBAL const double
             result[3*copy+1] = bad[0];
             result[3*copy+2] = first[0];
         }
+    }
+}
+
+/**
+ * counterNormals for listed copy c, table[base + 5c ..] = (out offset, key low and high 32
+ * bits, draw low and high 32 bits). One thread a block of four normals.
+ */
+KERNEL void normalsCopies(GLOBAL double* arena, GLOBAL const double* RESTRICT table, int base, int copies) {
+    const int blocks = (3*NUM_BEADS+3)/4;
+    for (int g = GLOBAL_ID; g < copies*blocks; g += GLOBAL_SIZE) {
+        GLOBAL const double* e = table+base+5*(g/blocks);
+        const mm_ulong key = (mm_ulong) e[1] | ((mm_ulong) e[2] << 32);
+        const mm_ulong draw = (mm_ulong) e[3] | ((mm_ulong) e[4] << 32);
+        philoxNormalsBlock(arena+(int) e[0], key, draw, g%blocks);
+    }
+}
+
+/** bulk[3n e ..] = arena[table[base + e] ..] for entry e < count (3n numbers each). */
+KERNEL void collectVectors(GLOBAL const double* RESTRICT arena, GLOBAL const double* RESTRICT table, int base,
+        int count, GLOBAL double* RESTRICT bulk) {
+    for (int g = GLOBAL_ID; g < count*3*NUM_BEADS; g += GLOBAL_SIZE) {
+        const int e = g/(3*NUM_BEADS);
+        bulk[g] = arena[(int) table[base+e]+g-e*3*NUM_BEADS];
+    }
+}
+
+/** arena[table[base + e] ..] = bulk[3n e ..] for entry e < count (3n numbers each). */
+KERNEL void spreadVectors(GLOBAL const double* RESTRICT bulk, GLOBAL const double* RESTRICT table, int base,
+        int count, GLOBAL double* RESTRICT arena) {
+    for (int g = GLOBAL_ID; g < count*3*NUM_BEADS; g += GLOBAL_SIZE) {
+        const int e = g/(3*NUM_BEADS);
+        arena[(int) table[base+e]+g-e*3*NUM_BEADS] = bulk[g];
     }
 }

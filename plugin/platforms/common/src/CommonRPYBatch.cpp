@@ -1,5 +1,7 @@
 #include "CommonRPYBatch.h"
 
+#include "knotmm/stepper/NoiseStream.h"
+
 #include "openmm/OpenMMException.h"
 #include "openmm/System.h"
 #include "openmm/common/ContextSelector.h"
@@ -128,14 +130,45 @@ double ArenaBackend::norm(const StateVector& v) { return CommonRPYBackend::norm(
 
 double ArenaBackend::maxBeadNorm(const StateVector& v) { return CommonRPYBackend::maxBeadNorm(owner.stage(0, v)); }
 
-void ArenaBackend::factorNoise(const StateVector& y) { CommonRPYBackend::factorNoise(owner.stage(0, y)); }
+void ArenaBackend::factorNoise(const StateVector& y) {
+    if (lanczos || !owner.inFiberOf(index)) {
+        factorPending = false;
+        CommonRPYBackend::factorNoise(owner.stage(0, y));
+        return;
+    }
+    if (!factorPoint)
+        factorPoint = createVector();
+    copy(*factorPoint, y);  // recorded: y as it is now, in order with the copy's operations
+    factorPending = true;
+}
 
 void ArenaBackend::applyNoise(double scale, const StateVector& z, StateVector& out) {
+    if (!lanczos && owner.inFiberOf(index)) {
+        owner.setNoiseScale(index, scale);
+        owner.waitForNoise(index, z, out);
+        return;
+    }
+    if (factorPending) {
+        factorPending = false;
+        CommonRPYBackend::factorNoise(owner.stage(0, *factorPoint));
+    }
     CommonRPYBackend::applyNoise(scale, owner.stage(0, z), owner.scratchVector(1));
     owner.unstage(1, out);
 }
 
 void ArenaBackend::normals(NoiseStream& stream, StateVector& out) {
+    if (stream.counterBased()) {  // recorded: the key and this draw, as 32-bit halves
+        const uint64_t key = stream.key(), draw = stream.takeDraw();
+        DeferredOp op;
+        op.pattern = "n";
+        op.out = arenaOffset(out);
+        op.c[0] = (double) (key & 0xffffffffu);
+        op.c[1] = (double) (key >> 32);
+        op.c[2] = (double) (draw & 0xffffffffu);
+        op.c[3] = (double) (draw >> 32);
+        owner.defer(index, std::move(op));
+        return;
+    }
     owner.settleCopy(index);
     CommonRPYBackend::normals(stream, owner.scratchVector(0));
     owner.unstage(0, out);
@@ -170,6 +203,7 @@ CommonRPYBatch::CommonRPYBatch(ComputeContext& cc, const System& system, const R
     table.initialize<double>(cc, 16 * (size_t) count, "rpyBatchTable");
     hostCentres.assign(4 * count, 0.0);
     hostChecks.assign(3 * count, 0.0);
+    noiseScale.assign(count, 0.0);
     pending.resize(count);
     arena.reset(new CopyArena(cc, 3 * n, count));
     createCopies(integrator);  // the first copy's backend compiles the program (createKernels)
@@ -203,6 +237,20 @@ void CommonRPYBatch::createKernels(const CommonRPYBackend& first) {
     readForcesKernel = program->createKernel("readForces");
     mobilityKernel = program->createKernel("mobilityCopies");
     checkKernel = program->createKernel("checkCopies");
+    normalsKernel = program->createKernel("normalsCopies");
+    collectKernel = program->createKernel("collectVectors");
+    spreadKernel = program->createKernel("spreadVectors");
+    normalsKernel->addArg(all);  // arena, table: set per call
+    normalsKernel->addArg(table);
+    normalsKernel->addArg(0);
+    normalsKernel->addArg(0);
+    for (ComputeKernel* k : {&collectKernel, &spreadKernel}) {  // all: the arena or bulk, set per call
+        (*k)->addArg(all);
+        (*k)->addArg(table);
+        (*k)->addArg(0);
+        (*k)->addArg(0);
+        (*k)->addArg(all);
+    }
     for (ComputeKernel* k : {&gatherKernel, &checkKernel})
         if ((*k)->getMaxBlockSize() < first.reduceSize)
             throw OpenMMException("RPYIntegrator: the device runs kernel " + (*k)->getName() +
@@ -354,7 +402,9 @@ void CommonRPYBatch::launchPending() {
                 done[k] = true;
                 const DeferredOp& op = pending[k][i];
                 hostTable.push_back(op.out);
-                const int count = pattern == "z" ? 0 : (int) pattern.size();
+                if (pattern == "n")
+                    hostTable.insert(hostTable.end(), op.c, op.c + 4);
+                const int count = pattern == "z" || pattern == "n" ? 0 : (int) pattern.size();
                 for (int t = 0; t < count; t++) {
                     hostTable.push_back(op.in[t]);
                     hostTable.push_back(op.c[t]);
@@ -368,6 +418,14 @@ void CommonRPYBatch::launchPending() {
         ops.clear();
     uploadTable();
     for (const Launch& launch : launches) {
+        if (launch.pattern == "n") {
+            normalsKernel->setArg(0, *arena->numbers);
+            normalsKernel->setArg(1, table);
+            normalsKernel->setArg(2, launch.base);
+            normalsKernel->setArg(3, launch.copies);
+            normalsKernel->execute(launch.copies * ((3 * n + 3) / 4));
+            continue;
+        }
         ComputeKernel& kernel = combineKernel(launch.pattern);
         kernel->setArg(0, *arena->numbers);
         kernel->setArg(1, table);
@@ -387,6 +445,7 @@ void CommonRPYBatch::settle() {
             checking.push_back(j);
     try {
         launchPending();
+        makeNoise();
         if (checking.empty())
             return;
         hostTable.clear();
@@ -415,6 +474,73 @@ void CommonRPYBatch::settle() {
                 copyAt(j).jobError = std::current_exception();
         return;
     }
+}
+
+void CommonRPYBatch::makeNoise() {
+    vector<int> noisy;
+    for (int j = 0; j < numCopies(); j++)
+        if (copyAt(j).state == State::WaitingForNoise)
+            noisy.push_back(j);
+    if (noisy.empty())
+        return;
+    const int dim = 3 * n;
+    // entries: each noisy copy's y to factor at (where pending), then its z
+    hostTable.clear();
+    vector<int> factorEntry, zEntry;
+    for (int j : noisy) {
+        ArenaBackend& b = backendOf(j);
+        factorEntry.push_back(b.factorPending ? tableAt() : -1);
+        if (b.factorPending)
+            hostTable.push_back(arenaOffset(*b.factorPoint));
+        zEntry.push_back(tableAt());
+        hostTable.push_back(arenaOffset(*copyAt(j).request));
+    }
+    const int entries = tableAt();
+    if (!bulk.isInitialized() || bulk.getSize() < (size_t) entries * dim) {
+        const size_t size = (size_t) std::max(entries, 2 * numCopies()) * dim;
+        if (bulk.isInitialized())
+            bulk.resize(size);
+        else
+            bulk.initialize<double>(cc, size, "rpyBatchNoise");
+    }
+    uploadTable();
+    collectKernel->setArg(0, *arena->numbers);
+    collectKernel->setArg(1, table);
+    collectKernel->setArg(3, entries);
+    collectKernel->setArg(4, bulk);
+    collectKernel->execute(entries * dim);
+    bulk.download(hostBulk);  // the round's one download of noise requests
+    // on the host, as CommonRPYBackend::factorNoise and applyNoise: each copy's own factor
+    hostTable.clear();
+    hostNoise.clear();
+    for (size_t i = 0; i < noisy.size(); i++) {
+        Copy& c = copyAt(noisy[i]);
+        ArenaBackend& b = backendOf(noisy[i]);
+        try {
+            if (factorEntry[i] >= 0) {
+                b.factorPending = false;
+                b.factorAt(&hostBulk[(size_t) factorEntry[i] * dim]);
+            }
+            hostNoise.resize(hostNoise.size() + dim);
+            b.cholesky.times(&hostBulk[(size_t) zEntry[i] * dim], noiseScale[noisy[i]], &hostNoise[hostNoise.size() - dim]);
+            hostTable.push_back(arenaOffset(*c.reply));
+        }
+        catch (...) {
+            c.jobError = std::current_exception();
+            if (hostNoise.size() > hostTable.size() * dim)
+                hostNoise.resize(hostTable.size() * dim);
+        }
+    }
+    const int replies = tableAt();
+    if (replies == 0)
+        return;
+    uploadTable();
+    bulk.uploadSubArray(hostNoise.data(), 0, replies * dim);
+    spreadKernel->setArg(0, bulk);
+    spreadKernel->setArg(1, table);
+    spreadKernel->setArg(3, replies);
+    spreadKernel->setArg(4, *arena->numbers);
+    spreadKernel->execute(replies * dim);
 }
 
 void CommonRPYBatch::readContextPositions(ContextImpl&, int copy, StateVector& positions) {

@@ -20,10 +20,14 @@ void CommonRPYBackend::factorNoise(const StateVector& y) {
     }
     // exact: the dense Cholesky factor of the 3n x 3n mobility, on the host
     data(y).download(host);
+    factorAt(host.data());
+}
+
+void CommonRPYBackend::factorAt(const double* y) {
     noiseAtHost.resize(3 * n);
     for (int b = 0; b < n; b++)
         for (int k = 0; k < 3; k++)
-            noiseAtHost[k * n + b] = host[3 * b + k];
+            noiseAtHost[k * n + b] = y[3 * b + k];
     if (!cholesky.factor(hostMobility, n, noiseAtHost.data(), singleFactor))
         throw RPYStepFault(RPYStepFault::NotPositiveDefinite,
                            "RPYIntegrator: the RPY mobility is not positive definite at these "

@@ -14,7 +14,10 @@
 // (the System's interaction groups keep the copies apart: a copy's forces are then those of
 // the copy alone, bit for bit whatever the others do), and each copy's velocity is its own
 // forces times its own block of the mobility. A copy that lands on its target, or fails,
-// waits while the others go on. The fibers take turns on the calling thread.
+// waits while the others go on. The fibers take turns on the calling thread. A round: every
+// runnable copy runs until it waits (for a velocity, a noise factor or sample, a try's check, or for the
+// operations it deferred to be done), then the platform settles (settle: the deferred
+// operations, the checks), evaluates and runs its jobs, and the waiting copies go on.
 //
 // What a platform adds: its copies' backends (makeBackend), reading a copy's positions from
 // the Context as it was created (readContextPositions), and the evaluation (evaluate, and
@@ -67,6 +70,8 @@ public:
     void waitForFactor(int copy, const StateVector& y);
     /** Wait until the batch has made checkTry(err, y1) for the copy (err null: y1's check alone). */
     RPYBackend::TryCheck waitForCheck(int copy, const StateVector* err, const StateVector& y1);
+    /** Wait until the batch has made out = B z, the copy's noise (settle; request z, reply out). */
+    void waitForNoise(int copy, const StateVector& z, StateVector& out);
     /** Wait until the batch has done the copy's deferred work (settle). */
     void waitForSettle(int copy);
     /** True while copy's fiber runs (its backend's calls can wait); false outside stepTo. */
@@ -108,7 +113,9 @@ protected:
     /** Copy k's grid point (nm), for the spacing placeCopies set. */
     void gridOffset(int copy, double offset[3]) const;
 
-    enum class State { Idle, Runnable, WaitingForVelocity, WaitingForFactor, WaitingForCheck, WaitingToSettle, Done };
+    enum class State {
+        Idle, Runnable, WaitingForVelocity, WaitingForFactor, WaitingForCheck, WaitingForNoise, WaitingToSettle, Done
+    };
     struct Copy {
         std::unique_ptr<RPYIntegrator> settings;  // step size and settings of this copy alone
         std::unique_ptr<RPYBackend> backend;
