@@ -130,7 +130,7 @@ private:
     OpenMM::ComputeArray noiseAt, lanczosV, lanczosW, energyPosition;  // 3n doubles each
     OpenMM::ComputeArray savedPosq, savedPosqCorrection, savedForces;    // groupEnergies
     OpenMM::ComputeKernel readPositionsKernel, writePositionsKernel, centreOfMassKernel, readForcesKernel,
-        mobilityKernel, sumSquaresKernel, maxBeadSquareKernel, firstNonFiniteKernel, countDifferentKernel,
+        mobilityKernel, sumSquaresKernel, firstNonFiniteKernel, countDifferentKernel,
         checkTryKernel, lanczosDotsKernel, lanczosSubtractKernel, lanczosAlphaBetaKernel, lanczosScaleKernel,
         lanczosCombineKernel, counterNormalsKernel;
     std::map<std::string, std::string> defines;

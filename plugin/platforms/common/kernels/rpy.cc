@@ -222,37 +222,6 @@ KERNEL void sumSquares(GLOBAL const double* RESTRICT v, GLOBAL double* RESTRICT 
         result[0] = part[0];
 }
 
-/**
- * result[0] = max over beads of vx^2 + vy^2 + vz^2, result[1] = the number of beads for which
- * that sum is not finite (one work group of REDUCE_SIZE).
- */
-KERNEL void maxBeadSquare(GLOBAL const double* RESTRICT v, GLOBAL double* RESTRICT result) {
-    LOCAL double worst[REDUCE_SIZE];
-    LOCAL double bad[REDUCE_SIZE];
-    double w = 0, nb = 0;
-    for (int b = LOCAL_ID; b < NUM_BEADS; b += LOCAL_SIZE) {
-        const double s = v[3*b]*v[3*b]+v[3*b+1]*v[3*b+1]+v[3*b+2]*v[3*b+2];
-        if (notFinite(s))
-            nb += 1;
-        else
-            w = (s > w ? s : w);
-    }
-    worst[LOCAL_ID] = w;
-    bad[LOCAL_ID] = nb;
-    for (int stride = REDUCE_SIZE/2; stride > 0; stride /= 2) {
-        SYNC_THREADS;
-        if (LOCAL_ID < stride) {
-            worst[LOCAL_ID] = (worst[LOCAL_ID+stride] > worst[LOCAL_ID] ? worst[LOCAL_ID+stride] : worst[LOCAL_ID]);
-            bad[LOCAL_ID] += bad[LOCAL_ID+stride];
-        }
-    }
-    SYNC_THREADS;
-    if (LOCAL_ID == 0) {
-        result[0] = worst[0];
-        result[1] = bad[0];
-    }
-}
-
 /** result[0] = the smallest index i with v_i not finite, or 3 NUM_BEADS (one work group). */
 KERNEL void firstNonFinite(GLOBAL const double* RESTRICT v, GLOBAL int* RESTRICT result) {
     LOCAL int first[REDUCE_SIZE];
@@ -344,8 +313,8 @@ DEVICE void checkTryParts(GLOBAL const double* RESTRICT err, GLOBAL const double
 /**
  * What the end of a try needs, in one download (one work group of REDUCE_SIZE):
  * result[0] = max over beads of |err_b|^2, result[1] = the number of beads for which it is
- * not finite (maxBeadSquare), result[2] = the smallest index i with y1_i not finite, or
- * 3 NUM_BEADS (firstNonFinite).
+ * not finite, result[2] = the smallest index i with y1_i not finite, or 3 NUM_BEADS
+ * (firstNonFinite). With err = y1 = v, result[0] and [1] are maxBeadNorm's.
  */
 KERNEL void checkTry(GLOBAL const double* RESTRICT err, GLOBAL const double* RESTRICT y1, GLOBAL double* RESTRICT result) {
     LOCAL double worst[REDUCE_SIZE];

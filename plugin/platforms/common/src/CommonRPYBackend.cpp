@@ -81,7 +81,6 @@ void CommonRPYBackend::setUp(const RPYIntegrator& integrator, const CommonRPYBac
     readForcesKernel = program->createKernel("readForces");
     mobilityKernel = program->createKernel("mobilityTimes");
     sumSquaresKernel = program->createKernel("sumSquares");
-    maxBeadSquareKernel = program->createKernel("maxBeadSquare");
     firstNonFiniteKernel = program->createKernel("firstNonFinite");
     countDifferentKernel = program->createKernel("countDifferent");
     checkTryKernel = program->createKernel("checkTry");
@@ -92,7 +91,7 @@ void CommonRPYBackend::setUp(const RPYIntegrator& integrator, const CommonRPYBac
     lanczosCombineKernel = program->createKernel("lanczosCombine");
     counterNormalsKernel = program->createKernel("counterNormals");
     // the pair loop and the reductions run in work groups of exactly TILE and REDUCE_SIZE items
-    for (ComputeKernel* k : {&mobilityKernel, &sumSquaresKernel, &maxBeadSquareKernel, &firstNonFiniteKernel,
+    for (ComputeKernel* k : {&mobilityKernel, &sumSquaresKernel, &firstNonFiniteKernel,
                              &countDifferentKernel, &centreOfMassKernel, &checkTryKernel, &lanczosDotsKernel,
                              &lanczosAlphaBetaKernel})
         if ((*k)->getMaxBlockSize() < (k == &mobilityKernel ? tileSize : reduceSize))
@@ -110,8 +109,6 @@ void CommonRPYBackend::setUp(const RPYIntegrator& integrator, const CommonRPYBac
     mobilityKernel->addArg(mu0);
     sumSquaresKernel->addArg(forces);  // set per call
     sumSquaresKernel->addArg(scalars);
-    maxBeadSquareKernel->addArg(forces);  // set per call
-    maxBeadSquareKernel->addArg(scalars);
     firstNonFiniteKernel->addArg(forces);  // set per call
     firstNonFiniteKernel->addArg(counts);
     countDifferentKernel->addArg(forces);  // a, b: set per call
@@ -338,11 +335,7 @@ double CommonRPYBackend::norm(const StateVector& v) {
 }
 
 double CommonRPYBackend::maxBeadNorm(const StateVector& v) {
-    maxBeadSquareKernel->setArg(0, data(v));
-    maxBeadSquareKernel->execute(reduceSize, reduceSize);
-    double result[3];  // scalars holds 3
-    scalars.download(result);
-    return result[1] == 0.0 ? std::sqrt(result[0]) : std::numeric_limits<double>::infinity();
+    return CommonRPYBackend::checkTry(v, v).errorNorm;  // not a batch copy's checkTry: v is its own
 }
 
 int CommonRPYBackend::firstNonFinite(const StateVector& v) {
