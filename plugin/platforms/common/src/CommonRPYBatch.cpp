@@ -20,9 +20,10 @@ using std::vector;
 
 namespace {
 
-// A stepper makes 36 vectors when it is made (every method's); a copy that makes more mid-run
-// (a Brownian step's rejected tries keep their noise) grows the arena, doubling it.
-const int FIRST_SLOTS_PER_COPY = 36;
+// A stepper makes 36 vectors when it is made (every method's), a Brownian copy one more for
+// its Cholesky factor's point, and an adaptive one one for each rejected try's kept noise
+// (most runs: a few); a copy that makes more grows the arena, doubling it.
+const int FIRST_SLOTS_PER_COPY = 40;
 
 } // namespace
 
