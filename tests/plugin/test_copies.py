@@ -204,12 +204,15 @@ def test_a_copy_that_fails_leaves_the_others_going(platform):
         assert batch.getCopyTime(c) == pytest.approx(0.1) and batch.getCopyFaultKind(c) == ""
 
 
-def test_threads_share_out_the_copies_and_change_no_number():
+@pytest.mark.parametrize("platform", ["Reference", *DEVICES])
+def test_threads_share_out_the_copies_and_change_no_number(platform):
+    # the host's share of a round: the mobility products and Cholesky factors of the copies
+    # (Reference), the Cholesky factors and noise products of a device's copies
     starts = _starts(4)
-    singles = [_single(x, "ito_heun_adaptive", "Reference", seed=20 + c)
+    singles = [_single(x, "ito_heun_adaptive", platform, seed=20 + c)
                for c, x in enumerate(starts)]
-    one, _one_ctx = _batch(starts, "ito_heun_adaptive", "Reference", singles, apart=False)
-    two, _two_ctx = _batch(starts, "ito_heun_adaptive", "Reference", singles, threads=2,
+    one, _one_ctx = _batch(starts, "ito_heun_adaptive", platform, singles, apart=False)
+    two, _two_ctx = _batch(starts, "ito_heun_adaptive", platform, singles, threads=2,
                            apart=False)
     with threadpool_limits(limits=1, user_api="blas"):  # LAPACK's own threads round otherwise
         assert one.stepCopiesTo([0.2] * 4, 1e9) and two.stepCopiesTo([0.2] * 4, 1e9)

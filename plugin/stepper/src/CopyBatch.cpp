@@ -7,8 +7,10 @@
 #include "openmm/OpenMMException.h"
 #include "openmm/System.h"
 #include "openmm/internal/ContextImpl.h"
+#include "openmm/internal/ThreadPool.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 
@@ -38,6 +40,12 @@ void copySettings(const RPYIntegrator& from, RPYIntegrator& to) {
 
 CopyBatch::CopyBatch(const System& system, const RPYIntegrator& integrator) {
     const int count = integrator.getNumCopies();
+    threads = integrator.getNumThreads();
+#ifdef __linux__
+    CPU_ZERO(&cores);
+    if (sched_getaffinity(0, sizeof(cores), &cores) != 0)
+        CPU_ZERO(&cores);
+#endif
     for (int i = 0; i < system.getNumParticles(); i++) {
         if (system.isVirtualSite(i))
             hasVirtualSites = true;
@@ -81,6 +89,31 @@ CopyBatch::CopyBatch(const System& system, const RPYIntegrator& integrator) {
 }
 
 CopyBatch::~CopyBatch() {}
+
+void CopyBatch::shareOut(const vector<int>& jobs, const std::function<void(int)>& work) {
+    if (threads < 2 || jobs.size() < 2) {
+        for (int k : jobs)
+            work(k);
+        return;
+    }
+    if (!pool) {
+        // Made at the first jobs, after the Context: a caller that keeps OpenMM's CPU-platform
+        // thread on its own core (knotmm's CorePin) does not count these among OpenMM's
+        pool.reset(new ThreadPool(threads));
+#ifdef __linux__
+        if (CPU_COUNT(&cores) > 0) {
+            pool->execute([&](ThreadPool&, int) { sched_setaffinity(0, sizeof(cores), &cores); });
+            pool->waitForThreads();
+        }
+#endif
+    }
+    std::atomic<size_t> next(0);
+    pool->execute([&](ThreadPool&, int) {
+        for (size_t j = next++; j < jobs.size(); j = next++)
+            work(jobs[j]);
+    });
+    pool->waitForThreads();
+}
 
 void CopyBatch::createCopies(const RPYIntegrator& integrator) {
     const int count = integrator.getNumCopies();

@@ -143,6 +143,8 @@ private:
     OpenMM::ComputeArray table, checks;            // the round's table; 3 K doubles
     OpenMM::ComputeArray bulk;                     // noise requests and replies, 3n doubles each
     std::vector<double> hostTable, hostCentres, hostChecks, hostBulk, hostNoise, noiseScale;
+    std::vector<int> noiseJobs;
+    std::vector<char> noiseFailed;
     bool readAll = false;                          // the Context's positions are in `all`
     OpenMM::ComputeKernel gatherKernel, writeKernel, readPositionsKernel, readForcesKernel, mobilityKernel,
         checkKernel, moveKernel, normalsKernel, collectKernel, spreadKernel;

@@ -511,26 +511,34 @@ void CommonRPYBatch::makeNoise() {
     collectKernel->setArg(4, bulk);
     collectKernel->execute(entries * dim);
     bulk.download(hostBulk);  // the round's one download of noise requests
-    // on the host, as CommonRPYBackend::factorNoise and applyNoise: each copy's own factor
-    hostTable.clear();
-    hostNoise.clear();
-    for (size_t i = 0; i < noisy.size(); i++) {
-        Copy& c = copyAt(noisy[i]);
+    // on the host, as CommonRPYBackend::factorNoise and applyNoise: each copy's own factor,
+    // the copies shared out over the integrator's threads
+    hostNoise.resize(noisy.size() * dim);
+    noiseFailed.assign(noisy.size(), 0);
+    noiseJobs.resize(noisy.size());
+    for (size_t i = 0; i < noisy.size(); i++)
+        noiseJobs[i] = (int) i;
+    shareOut(noiseJobs, [&](int i) {
         ArenaBackend& b = backendOf(noisy[i]);
         try {
             if (factorEntry[i] >= 0) {
                 b.factorPending = false;
                 b.factorAt(&hostBulk[(size_t) factorEntry[i] * dim]);
             }
-            hostNoise.resize(hostNoise.size() + dim);
-            b.cholesky.times(&hostBulk[(size_t) zEntry[i] * dim], noiseScale[noisy[i]], &hostNoise[hostNoise.size() - dim]);
-            hostTable.push_back(arenaOffset(*c.reply));
+            b.cholesky.times(&hostBulk[(size_t) zEntry[i] * dim], noiseScale[noisy[i]], &hostNoise[(size_t) i * dim]);
         }
         catch (...) {
-            c.jobError = std::current_exception();
-            if (hostNoise.size() > hostTable.size() * dim)
-                hostNoise.resize(hostTable.size() * dim);
+            copyAt(noisy[i]).jobError = std::current_exception();
+            noiseFailed[i] = 1;
         }
+    });
+    hostTable.clear();  // the replies of the copies that got one, packed in order
+    for (size_t i = 0; i < noisy.size(); i++) {
+        if (noiseFailed[i])
+            continue;
+        if (tableAt() != (int) i)
+            std::copy_n(&hostNoise[i * dim], dim, &hostNoise[(size_t) tableAt() * dim]);
+        hostTable.push_back(arenaOffset(*copyAt(noisy[i]).reply));
     }
     const int replies = tableAt();
     if (replies == 0)

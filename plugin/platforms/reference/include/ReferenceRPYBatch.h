@@ -11,13 +11,6 @@
 
 #include <memory>
 #include <vector>
-#ifdef __linux__
-#include <sched.h>
-#endif
-
-namespace OpenMM {
-class ThreadPool;
-}
 
 namespace KnotMM {
 
@@ -44,7 +37,6 @@ class ReferenceRPYBatch : public CopyBatch {
 public:
     /** `singleForces`: as for ReferenceRPYBackend (the CPU platform). */
     ReferenceRPYBatch(const OpenMM::System& system, const RPYIntegrator& integrator, bool singleForces);
-    ~ReferenceRPYBatch();
 
 protected:
     std::unique_ptr<RPYBackend> makeBackend(int copy, const RPYIntegrator& settings) override;
@@ -54,18 +46,12 @@ protected:
     void runJobs() override;
 
 private:
-    void startThreads();
     bool singleForces;
     std::vector<std::vector<OpenMM::Vec3>> forces;  // each copy's beads' forces at its request
     // scratch of evaluate and runJobs: each copy's positions and centre, the waiting copies
     std::vector<const std::vector<double>*> at;
     std::vector<OpenMM::Vec3> centre;
     std::vector<int> jobs;
-    int threads = 1;                                // the integrator's, over the copies
-    std::unique_ptr<OpenMM::ThreadPool> pool;       // made at the first jobs (startThreads)
-#ifdef __linux__
-    cpu_set_t cores;                                // the process's cores when the batch was made
-#endif
 };
 
 } // namespace KnotMM

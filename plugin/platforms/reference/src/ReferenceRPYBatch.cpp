@@ -2,15 +2,10 @@
 
 #include "openmm/OpenMMException.h"
 #include "openmm/internal/ContextImpl.h"
-#include "openmm/internal/ThreadPool.h"
 #include "openmm/reference/ReferencePlatform.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#ifdef __linux__
-#include <sched.h>
-#endif
 
 using namespace OpenMM;
 using namespace KnotMM;
@@ -47,17 +42,9 @@ void CopyBackend::factorNoise(const StateVector& y) {
 
 ReferenceRPYBatch::ReferenceRPYBatch(const System& system, const RPYIntegrator& integrator, bool singleForces)
     : CopyBatch(system, integrator), singleForces(singleForces) {
-    threads = integrator.getNumThreads();
-#ifdef __linux__
-    CPU_ZERO(&cores);
-    if (sched_getaffinity(0, sizeof(cores), &cores) != 0)
-        CPU_ZERO(&cores);
-#endif
     forces.assign(integrator.getNumCopies(), vector<Vec3>(n));
     createCopies(integrator);
 }
-
-ReferenceRPYBatch::~ReferenceRPYBatch() {}
 
 std::unique_ptr<RPYBackend> ReferenceRPYBatch::makeBackend(int copy, const RPYIntegrator& settings) {
     // the copy's settings say one thread; the batch's count decides where factors are made
@@ -70,19 +57,6 @@ void ReferenceRPYBatch::readContextPositions(ContextImpl& context, int copy, Sta
     for (int b = 0; b < n; b++)
         for (int i = 0; i < 3; i++)
             y[3 * b + i] = from[beadParticle[copy * n + b]][i];
-}
-
-void ReferenceRPYBatch::startThreads() {
-    // Made at the first jobs, after the Context: a caller that keeps OpenMM's CPU-platform
-    // thread on its own core (knotmm's CorePin) does not count these among OpenMM's; each
-    // takes the cores the process had when the batch was made, whatever its creator's.
-    pool.reset(new ThreadPool(threads));
-#ifdef __linux__
-    if (CPU_COUNT(&cores) > 0) {
-        pool->execute([&](ThreadPool&, int) { sched_setaffinity(0, sizeof(cores), &cores); });
-        pool->waitForThreads();
-    }
-#endif
 }
 
 void ReferenceRPYBatch::runJobs() {
@@ -105,19 +79,7 @@ void ReferenceRPYBatch::runJobs() {
             c.jobError = std::current_exception();
         }
     };
-    if (threads > 1 && !pool && jobs.size() > 1)
-        startThreads();
-    if (!pool || jobs.size() < 2) {
-        for (int k : jobs)
-            work(k);
-        return;
-    }
-    std::atomic<size_t> next(0);
-    pool->execute([&](ThreadPool&, int) {
-        for (size_t j = next++; j < jobs.size(); j = next++)
-            work(jobs[j]);
-    });
-    pool->waitForThreads();
+    shareOut(jobs, work);
 }
 
 void ReferenceRPYBatch::evaluate(ContextImpl& context) {

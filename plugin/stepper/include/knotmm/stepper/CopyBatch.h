@@ -38,9 +38,13 @@
 #include <ucontext.h>
 #include <utility>
 #include <vector>
+#ifdef __linux__
+#include <sched.h>
+#endif
 
 namespace OpenMM {
 class System;
+class ThreadPool;
 }
 
 namespace KnotMM {
@@ -112,6 +116,13 @@ protected:
     double placeCopies(double reach);
     /** Copy k's grid point (nm), for the spacing placeCopies set. */
     void gridOffset(int copy, double offset[3]) const;
+    /**
+     * work(k) for each k in `jobs`, shared out over the integrator's threads (a pool made at
+     * the first call with two jobs or more; each of its threads takes the cores the process
+     * had when the batch was made), or here, one after another, with one thread or one job.
+     * A job's exception is its own to keep (work must not throw).
+     */
+    void shareOut(const std::vector<int>& jobs, const std::function<void(int)>& work);
 
     enum class State {
         Idle, Runnable, WaitingForVelocity, WaitingForFactor, WaitingForCheck, WaitingForNoise, WaitingToSettle, Done
@@ -137,6 +148,7 @@ protected:
     const Copy& copyAt(int k) const { return *copies[k]; }
 
     int n = 0;                        // beads per copy
+    int threads = 1;                  // the integrator's, over the copies (shareOut)
     std::vector<int> beadParticle;    // bead (all copies) -> particle
     bool hasVirtualSites = false;
     bool apart = true;                // copies on a grid (else each at its centre of mass)
@@ -146,6 +158,10 @@ private:
     static void fiberEntry(int low, int high);
     void runCopy(Copy& c);
     void wait(Copy& c, State state, const StateVector& y, StateVector* v);
+    std::unique_ptr<OpenMM::ThreadPool> pool;  // shareOut's, made at its first jobs
+#ifdef __linux__
+    cpu_set_t cores;                  // the process's cores when the batch was made
+#endif
     double margin = 1.0;              // nm: twice the largest nonbonded cutoff
     double gridSpacing = 0.0;         // nm: 0 until the first evaluation sets it
     int gridSide = 1;
