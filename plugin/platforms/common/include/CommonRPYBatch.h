@@ -143,8 +143,15 @@ private:
     OpenMM::ComputeArray table, checks;            // the round's table; 3 K doubles
     OpenMM::ComputeArray bulk;                     // noise requests and replies, 3n doubles each
     std::vector<double> hostTable, hostCentres, hostChecks, hostBulk, hostNoise, noiseScale;
-    std::vector<int> noiseJobs;
-    std::vector<char> noiseFailed;
+    // a round's scratch, members so that a round allocates nothing once the copies have all
+    // waited at once (strings of up to 15 terms stay in their small-string storage)
+    struct Launch {
+        std::string pattern;
+        int base, copies;
+    };
+    std::vector<Launch> launches;
+    std::vector<char> done, noiseFailed;
+    std::vector<int> checking, noisy, waiting, factorEntry, zEntry, noiseJobs;
     bool readAll = false;                          // the Context's positions are in `all`
     OpenMM::ComputeKernel gatherKernel, writeKernel, readPositionsKernel, readForcesKernel, mobilityKernel,
         checkKernel, moveKernel, normalsKernel, collectKernel, spreadKernel;

@@ -381,17 +381,12 @@ void CommonRPYBatch::launchPending() {
     // The i-th operations of all copies, grouped by pattern, in one launch each; a copy's
     // operations in its order (launch i+1 after launch i on the one queue). The table (this
     // round's, started by the caller) gets each launch's entries; uploaded once, then launched.
-    struct Launch {
-        string pattern;
-        int base, copies;
-    };
-    vector<Launch> launches;
+    launches.clear();
     size_t longest = 0;
     for (const auto& ops : pending)
         longest = std::max(longest, ops.size());
-    vector<int> group;
     for (size_t i = 0; i < longest; i++) {
-        vector<bool> done(pending.size(), false);
+        done.assign(pending.size(), 0);
         for (size_t first = 0; first < pending.size(); first++) {
             if (done[first] || pending[first].size() <= i)
                 continue;
@@ -400,7 +395,7 @@ void CommonRPYBatch::launchPending() {
             for (size_t k = first; k < pending.size(); k++) {
                 if (done[k] || pending[k].size() <= i || pending[k][i].pattern != pattern)
                     continue;
-                done[k] = true;
+                done[k] = 1;
                 const DeferredOp& op = pending[k][i];
                 hostTable.push_back(op.out);
                 if (pattern == "n")
@@ -440,7 +435,7 @@ void CommonRPYBatch::settle() {
     // One round: the recorded operations, then the checks the copies wait for, with one upload
     // of the table and one download of the checks.
     hostTable.clear();
-    vector<int> checking;
+    checking.clear();
     for (int j = 0; j < numCopies(); j++)
         if (copyAt(j).state == State::WaitingForCheck)
             checking.push_back(j);
@@ -478,7 +473,7 @@ void CommonRPYBatch::settle() {
 }
 
 void CommonRPYBatch::makeNoise() {
-    vector<int> noisy;
+    noisy.clear();
     for (int j = 0; j < numCopies(); j++)
         if (copyAt(j).state == State::WaitingForNoise)
             noisy.push_back(j);
@@ -487,7 +482,8 @@ void CommonRPYBatch::makeNoise() {
     const int dim = 3 * n;
     // entries: each noisy copy's y to factor at (where pending), then its z
     hostTable.clear();
-    vector<int> factorEntry, zEntry;
+    factorEntry.clear();
+    zEntry.clear();
     for (int j : noisy) {
         ArenaBackend& b = backendOf(j);
         factorEntry.push_back(b.factorPending ? tableAt() : -1);
@@ -570,7 +566,7 @@ void CommonRPYBatch::evaluate(ContextImpl& context) {
     const int count = numCopies();
     const int reduceSize = backendOf(0).reduceSize, tileSize = backendOf(0).tileSize;
     hostTable.clear();
-    vector<int> waiting;
+    waiting.clear();
     for (int j = 0; j < count; j++) {
         const Copy& c = copyAt(j);
         hostTable.push_back(arenaOffset(c.state == State::WaitingForVelocity ? *c.request : *c.positions));
