@@ -12,10 +12,13 @@
 // needs a result: a velocity (one gather of all copies' positions with their centres and
 // reaches, one write into the Context, one force call, one read of all forces, one mobility
 // launch for every waiting copy's block), a try's check (one launch and one download for every
-// waiting copy, with the centres' download when the copies are kept apart), or any other
-// operation (noise, norms, transfers), which then runs for that copy alone on scratch vectors
-// (the copy's CommonRPYBackend, as a run of that copy alone). So a round costs about as many
-// launches as one step of a single run, whatever K. Each copy's numbers are those of its run
+// waiting copy, with the centres' download when the copies are kept apart), Cholesky noise
+// (every waiting copy's factor point and z in one download, each copy's factor and B z on the
+// host over the integrator's threads, one upload of the replies; counter-based normals are
+// recorded with the vector operations), or any other operation (Lanczos noise, norms,
+// transfers), which then runs for that copy alone on scratch vectors (the copy's
+// CommonRPYBackend, as a run of that copy alone). So a round costs about as many launches as
+// one step of a single run, whatever K. Each copy's numbers are those of its run
 // alone: the same operations in the same order on the same numbers. Memory grows as K.
 
 #include "CommonRPYBackend.h"
