@@ -280,20 +280,6 @@ void CopyBatch::waitForSettle(int copy) {
         std::rethrow_exception(std::exchange(c.jobError, nullptr));
 }
 
-void CopyBatch::settle() {
-    for (auto& copy : copies) {
-        Copy& c = *copy;
-        if (c.state != State::WaitingForCheck)
-            continue;
-        try {
-            c.check = c.request2 != nullptr ? c.backend->checkTry(*c.request2, *c.request)
-                                            : RPYBackend::TryCheck{0.0, c.backend->firstNonFinite(*c.request)};
-        }
-        catch (...) {
-            c.jobError = std::current_exception();
-        }
-    }
-}
 
 bool CopyBatch::stepTo(ContextImpl& contextRef, RPYIntegrator& integrator, const vector<double>& targets,
                        double maxSeconds) {

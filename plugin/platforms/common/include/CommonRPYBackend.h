@@ -98,6 +98,8 @@ public:
 private:
     friend class CommonRPYBatch;
     friend class ArenaBackend;
+    /** A try's check from the checkTry kernel's result (checkCopies writes the same three). */
+    TryCheck tryCheckOf(const double result[3]) const;
     /** The Cholesky factor of mu(y), y on the host (3n numbers, bead-major). */
     void factorAt(const double* y);
     void setUp(const RPYIntegrator& integrator, const CommonRPYBackend* prototype);

@@ -40,6 +40,8 @@ struct CopyArena {
     int take(int copy);
     /** The slot is free again, for `copy` only (its pending operations keep their order). */
     void give(int copy, int slot) { freeSlots[copy].push_back(slot); }
+    /** to[toAt ..] = from[fromAt ..], count numbers (one launch of moveNumbers). */
+    void moveNumbers(OpenMM::ComputeArray& from, int fromAt, OpenMM::ComputeArray& to, int toAt, int count);
     OpenMM::ComputeContext& cc;
     const int stride;                               // 3n
     std::unique_ptr<OpenMM::ComputeArray> numbers;  // capacity x stride doubles
@@ -157,7 +159,7 @@ private:
     std::vector<int> checking, noisy, waiting, factorEntry, zEntry, noiseJobs;
     bool readAll = false;                          // the Context's positions are in `all`
     OpenMM::ComputeKernel gatherKernel, writeKernel, readPositionsKernel, readForcesKernel, mobilityKernel,
-        checkKernel, moveKernel, normalsKernel, collectKernel, spreadKernel;
+        checkKernel, normalsKernel, collectKernel, spreadKernel;
     std::map<std::string, OpenMM::ComputeKernel> combineKernels;
     std::map<std::string, OpenMM::ComputeProgram> combinePrograms;
 };

@@ -47,18 +47,21 @@ int CopyArena::take(int copy) {
                                   "run fewer copies in one Context");
         std::unique_ptr<ComputeArray> bigger(new ComputeArray());
         bigger->initialize<double>(cc, (size_t) grown * stride, "rpyCopyArena");
-        if (used > 0) {
-            move->setArg(0, *numbers);
-            move->setArg(1, 0);
-            move->setArg(2, *bigger);
-            move->setArg(3, 0);
-            move->setArg(4, used * stride);
-            move->execute(used * stride);
-        }
+        if (used > 0)
+            moveNumbers(*numbers, 0, *bigger, 0, used * stride);
         numbers = std::move(bigger);
         capacity = grown;
     }
     return used++;
+}
+
+void CopyArena::moveNumbers(ComputeArray& from, int fromAt, ComputeArray& to, int toAt, int count) {
+    move->setArg(0, from);
+    move->setArg(1, fromAt);
+    move->setArg(2, to);
+    move->setArg(3, toAt);
+    move->setArg(4, count);
+    move->execute(count);
 }
 
 // --- a copy's backend ----------------------------------------------------------------------------
@@ -111,7 +114,6 @@ void ArenaBackend::setZero(StateVector& out) {
 RPYBackend::TryCheck ArenaBackend::checkTry(const StateVector& err, const StateVector& y1) {
     if (owner.inFiberOf(index))
         return owner.waitForCheck(index, &err, y1);
-    owner.settleCopy(index);
     return CommonRPYBackend::checkTry(owner.stage(0, err), owner.stage(1, y1));
 }
 
@@ -168,7 +170,7 @@ void ArenaBackend::normals(NoiseStream& stream, StateVector& out) {
         owner.defer(index, std::move(op));
         return;
     }
-    owner.settleCopy(index);
+    owner.settleCopy(index);  // before the shared scratch is written: unstage cannot wait then
     CommonRPYBackend::normals(stream, owner.scratchVector(0));
     owner.unstage(0, out);
 }
@@ -178,7 +180,7 @@ void ArenaBackend::download(const StateVector& v, vector<double>& host) {
 }
 
 void ArenaBackend::upload(const vector<double>& host, StateVector& v) {
-    owner.settleCopy(index);
+    owner.settleCopy(index);  // before the shared scratch is written: unstage cannot wait then
     CommonRPYBackend::upload(host, owner.scratchVector(0));
     owner.unstage(0, v);
 }
@@ -199,24 +201,14 @@ void CommonRPYBatch::settleCopy(int copy) {
 CommonVector& CommonRPYBatch::stage(int k, const StateVector& v) {
     const CommonVector& from = static_cast<const CommonVector&>(v);
     settleCopy(from.copy);
-    moveKernel->setArg(0, *arena->numbers);
-    moveKernel->setArg(1, from.offset);
-    moveKernel->setArg(2, scratch[k]->a);
-    moveKernel->setArg(3, 0);
-    moveKernel->setArg(4, 3 * n);
-    moveKernel->execute(3 * n);
+    arena->moveNumbers(*arena->numbers, from.offset, scratch[k]->a, 0, 3 * n);
     return *scratch[k];
 }
 
 void CommonRPYBatch::unstage(int k, StateVector& v) {
     const CommonVector& to = static_cast<const CommonVector&>(v);
     settleCopy(to.copy);
-    moveKernel->setArg(0, scratch[k]->a);
-    moveKernel->setArg(1, 0);
-    moveKernel->setArg(2, *arena->numbers);
-    moveKernel->setArg(3, to.offset);
-    moveKernel->setArg(4, 3 * n);
-    moveKernel->execute(3 * n);
+    arena->moveNumbers(scratch[k]->a, 0, *arena->numbers, to.offset, 3 * n);
 }
 
 vector<double> CommonRPYBatch::getPositions(int copy) const {

@@ -352,6 +352,10 @@ RPYBackend::TryCheck CommonRPYBackend::checkTry(const StateVector& err, const St
     checkTryKernel->execute(reduceSize, reduceSize);
     double result[3];
     scalars.download(result);  // the one download of a try
+    return tryCheckOf(result);
+}
+
+RPYBackend::TryCheck CommonRPYBackend::tryCheckOf(const double result[3]) const {
     const int first = (int) result[2];
     return TryCheck{result[1] == 0.0 ? std::sqrt(result[0]) : std::numeric_limits<double>::infinity(),
                     first < 3 * n ? first : -1};

@@ -9,8 +9,6 @@
 #include "openmm/internal/ContextImpl.h"
 
 #include <algorithm>
-#include <cmath>
-#include <limits>
 #include <sstream>
 
 using namespace OpenMM;
@@ -56,13 +54,13 @@ std::unique_ptr<RPYBackend> CommonRPYBatch::makeBackend(int copy, const RPYInteg
 void CommonRPYBatch::createKernels(const CommonRPYBackend& first) {
     ComputeProgram program = first.program;
     const bool mixed = cc.getUseMixedPrecision();
-    moveKernel = program->createKernel("moveNumbers");
-    moveKernel->addArg(all);  // from, at, to, at, count: set per call
-    moveKernel->addArg(0);
-    moveKernel->addArg(all);
-    moveKernel->addArg(0);
-    moveKernel->addArg(0);
-    arena->move = moveKernel;
+    ComputeKernel& move = arena->move;  // the arena's (CopyArena::moveNumbers)
+    move = program->createKernel("moveNumbers");
+    move->addArg(all);  // from, at, to, at, count: set per call
+    move->addArg(0);
+    move->addArg(all);
+    move->addArg(0);
+    move->addArg(0);
     gatherKernel = program->createKernel("gatherCopies");
     writeKernel = program->createKernel("writeCopies");
     readPositionsKernel = program->createKernel("readPositions");
@@ -229,8 +227,8 @@ void CommonRPYBatch::launchPending() {
 }
 
 void CommonRPYBatch::settle() {
-    // One round: the recorded operations, then the checks the copies wait for, with one upload
-    // of the table and one download of the checks.
+    // One round: the recorded operations, the noise the copies wait for (makeNoise), then
+    // their checks, with one upload of the table and one download of the checks.
     hostTable.clear();
     checking.clear();
     for (int j = 0; j < numCopies(); j++)
@@ -255,11 +253,8 @@ void CommonRPYBatch::settle() {
         checkKernel->setArg(3, (int) checking.size());
         checkKernel->execute(std::min((int) checking.size(), cc.getNumThreadBlocks()) * reduceSize, reduceSize);
         checks.download(hostChecks.data());  // the one download of the round's checks
-        for (size_t i = 0; i < checking.size(); i++) {
-            const double* r = &hostChecks[3 * i];
-            copyAt(checking[i]).check = RPYBackend::TryCheck{r[1] == 0.0 ? std::sqrt(r[0]) : std::numeric_limits<double>::infinity(),
-                                                 r[2] < 3 * n ? (int) r[2] : -1};
-        }
+        for (size_t i = 0; i < checking.size(); i++)
+            copyAt(checking[i]).check = backendOf(0).tryCheckOf(&hostChecks[3 * i]);
     }
     catch (...) {
         for (int j = 0; j < numCopies(); j++)
@@ -351,12 +346,7 @@ void CommonRPYBatch::readContextPositions(ContextImpl&, int copy, StateVector& p
         readAll = true;
     }
     settleCopy(copy);  // the vector's zeros first
-    moveKernel->setArg(0, all);
-    moveKernel->setArg(1, 3 * n * copy);
-    moveKernel->setArg(2, *arena->numbers);
-    moveKernel->setArg(3, arenaOffset(positions));
-    moveKernel->setArg(4, 3 * n);
-    moveKernel->execute(3 * n);
+    arena->moveNumbers(all, 3 * n * copy, *arena->numbers, arenaOffset(positions), 3 * n);
 }
 
 void CommonRPYBatch::evaluate(ContextImpl& context) {

@@ -15,9 +15,10 @@
 // the copy alone, bit for bit whatever the others do), and each copy's velocity is its own
 // forces times its own block of the mobility. A copy that lands on its target, or fails,
 // waits while the others go on. The fibers take turns on the calling thread. A round: every
-// runnable copy runs until it waits (for a velocity, a noise factor or sample, a try's check, or for the
-// operations it deferred to be done), then the platform settles (settle: the deferred
-// operations, the checks), evaluates and runs its jobs, and the waiting copies go on.
+// runnable copy runs until it waits (for a velocity, a noise factor or sample, a try's check,
+// or for the operations it deferred to be done), then the platform settles (settle: the
+// deferred operations, the noise, the checks), evaluates and runs its jobs, and the waiting
+// copies go on.
 //
 // What a platform adds: its copies' backends (makeBackend), reading a copy's positions from
 // the Context as it was created (readContextPositions), and the evaluation (evaluate, and
@@ -107,11 +108,12 @@ protected:
     virtual void runJobs() {}
     /**
      * First in each round, and once after the last: the work the copies deferred (a platform
-     * that defers its vector operations to launch them for all copies at once), then the
-     * checks the copies wait for (WaitingForCheck: request2 = err or null, request = y1; the
-     * result into `check`). Default: nothing deferred, each check made by the copy's backend.
+     * that defers its vector operations to launch them for all copies at once), then what
+     * they wait for besides velocities and factors (WaitingForCheck: request2 = err or null,
+     * request = y1, the result into `check`; WaitingForNoise: request = z, reply = out). Only
+     * a platform whose backends defer or wait so (CommonRPYBatch) has any; default: nothing.
      */
-    virtual void settle();
+    virtual void settle() {}
     /** The grid spacing for copies reaching `reach` (nm) from their centres; also sets spacing(). */
     double placeCopies(double reach);
     /** Copy k's grid point (nm), for the spacing placeCopies set. */
@@ -125,7 +127,8 @@ protected:
     void shareOut(const std::vector<int>& jobs, const std::function<void(int)>& work);
 
     enum class State {
-        Idle, Runnable, WaitingForVelocity, WaitingForFactor, WaitingForCheck, WaitingForNoise, WaitingToSettle, Done
+        Idle, Runnable, WaitingForVelocity, WaitingForFactor, WaitingForCheck, WaitingForNoise,
+        WaitingToSettle, Done
     };
     struct Copy {
         std::unique_ptr<RPYIntegrator> settings;  // step size and settings of this copy alone
@@ -134,7 +137,7 @@ protected:
         VectorPtr positions;                      // 3n, in the backend's memory
         double time = 0.0, target = 0.0;
         State state = State::Idle;
-        const StateVector* request = nullptr;     // where the copy wants its velocity or factor; y1 of a check
+        const StateVector* request = nullptr;     // its velocity's or factor's y; a check's y1; a noise's z
         const StateVector* request2 = nullptr;    // err of a check (null: none)
         RPYBackend::TryCheck check{0.0, -1};      // the check's result
         StateVector* reply = nullptr;             // where the velocity goes
